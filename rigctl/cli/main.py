@@ -1,0 +1,58 @@
+"""`rigctl` command line: one module per subcommand, each exposing ``register(subparsers)``.
+
+Every subcommand sets ``func(args) -> int`` on its parser. Errors the user can fix (bad arguments,
+bad files, limits) are raised as :class:`UsageError` (or ``ValueError`` subclasses such as
+``DataError``) and printed as one line with exit code 2; device failures exit 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+# Subcommand modules, in the order `rigctl --help` lists them. Add a line to add a command.
+COMMAND_MODULES: tuple[str, ...] = (
+    "rigctl.cli.cmd_simulate",
+    "rigctl.cli.cmd_bench",
+)
+
+
+class UsageError(ValueError):
+    """A problem with what the user asked for; printed as one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="rigctl", description="Stick-slip friction rig: control, record, model.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name in COMMAND_MODULES:
+        module = importlib.import_module(name)
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        return int(args.func(args))
+    except UsageError as exc:
+        print(f"rigctl: error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"rigctl: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rigctl: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

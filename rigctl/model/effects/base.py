@@ -1,0 +1,151 @@
+"""The effect plug-in interface: what an effect is and the hooks through which it acts on the model.
+
+An effect is a small class with a canonical ``name``, a ``summary``, parameter specs (SI units,
+bounds, an ``off`` value at which it has no influence) and up to three hooks:
+
+* :meth:`Effect.apply` - set or scale model coefficients before a run (``core`` below);
+* :meth:`Effect.on_slip_end` - update coefficients after every global slip (wear, degradation...);
+* :meth:`Effect.transform_output` - act on the recorded outputs (sensor or probe behaviour).
+
+``core`` is a :class:`CoreParams`: the coefficients the compiled integrator reads, by name. Built-in
+and user effects use exactly the same interface (docs/effects.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from rigctl.model import layout
+from rigctl.model.params import ParamSpec
+
+if TYPE_CHECKING:
+    from rigctl.model.result import SimResult
+
+# Coefficient names a hook may read or set, mapped to slots of the kernel's parameter vector.
+CORE_SLOTS: dict[str, int] = {
+    "m_kg": layout.P_M,
+    "c0_N_s_per_m": layout.P_C0,
+    "k0_N_per_m": layout.P_K0,
+    "kts_N_per_m": layout.P_KTS,
+    "mu_s": layout.P_MUS,
+    "mu_k": layout.P_MUK,
+    "kt0_N_per_m": layout.P_KT0,
+    "mu_smax": layout.P_MUSMAX,
+    "p_slope": layout.P_PSLOPE,
+    "stribeck_vs_m_per_s": layout.P_VS,
+    "stribeck_d": layout.P_SD,
+    "rs_a": layout.P_RS_A,
+    "rs_b": layout.P_RS_B,
+    "rs_dc_m": layout.P_RS_DC,
+    "rs_v_ref_m_per_s": layout.P_RS_VREF,
+    "alpha_s": layout.P_ALPHA_S,
+    "alpha_k": layout.P_ALPHA_K,
+    "fn_ref_mu_N": layout.P_FNREF_MU,
+    "beta0": layout.P_BETA0,
+    "beta_s": layout.P_BETAS,
+    "fn_ref_k_N": layout.P_FNREF_K,
+    "kt_multiplier": layout.P_KT_MULT,
+    "dmu_s": layout.P_DMU_S,
+    "dmu_k": layout.P_DMU_K,
+    "threshold_spread": layout.P_SPREAD,
+    "c_interface_N_s_per_m": layout.P_CINT,
+    "kappa": layout.P_KAPPA,
+    "sensor_tau_s": layout.P_TAU_S,
+}
+
+
+class CoreParams:
+    """Named view of the integrator's coefficient vector (SI units)."""
+
+    def __init__(self, vector: np.ndarray) -> None:
+        self._v = vector
+
+    def __getitem__(self, name: str) -> float:
+        return float(self._v[self._slot(name)])
+
+    def __setitem__(self, name: str, value: float) -> None:
+        v = float(value)
+        if not np.isfinite(v):
+            raise ValueError(f"core coefficient '{name}' set to a non-finite value {v}")
+        self._v[self._slot(name)] = v
+
+    @staticmethod
+    def _slot(name: str) -> int:
+        try:
+            return CORE_SLOTS[name]
+        except KeyError:
+            raise KeyError(
+                f"unknown core coefficient '{name}' (known: {', '.join(CORE_SLOTS)})"
+            ) from None
+
+    @property
+    def vector(self) -> np.ndarray:
+        return self._v
+
+
+@dataclass(frozen=True)
+class SlipContext:
+    """What an ``on_slip_end`` hook learns about the global slip that just ended."""
+
+    t_s: float
+    n_slips: int
+    """Completed global slips so far, this one included (1 after the first)."""
+    slip_m: float
+    cumulative_slip_m: float
+    fn_N: float
+    peak_N: float
+    trough_N: float
+
+
+class Effect:
+    """Base class of every effect. Subclass, set the class attributes, override what you need."""
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    signature: ClassVar[str] = ""
+    """What its absence looks like in the residual of a model without it (shared/spec/model.md)."""
+    params: ClassVar[tuple[ParamSpec, ...]] = ()
+    reveal_protocol: ClassVar[str] = ""
+    """The protocol that best separates this effect from others (used in diagnosis advice)."""
+
+    def off_values(self, base: Mapping[str, float]) -> dict[str, float]:
+        """Parameter values at which this effect leaves the model exactly as without it."""
+        out: dict[str, float] = {}
+        for p in self.params:
+            if p.off is None:
+                raise NotImplementedError(f"effect '{self.name}': parameter {p.name} has no off")
+            out[p.name] = p.off
+        return out
+
+    def default_values(self, base: Mapping[str, float]) -> dict[str, float]:
+        """Default parameter values (may depend on the base values)."""
+        return {p.name: p.default for p in self.params}
+
+    def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
+        """Set the coefficients this effect owns before a run starts."""
+
+    def on_slip_end(
+        self, core: CoreParams, values: Mapping[str, float], ctx: SlipContext
+    ) -> None:
+        """Update coefficients after each global slip (only called if overridden)."""
+
+    def transform_output(self, result: SimResult, values: Mapping[str, float]) -> None:
+        """Modify the recorded outputs in place (e.g. a probe's drift)."""
+
+    def element_threshold_factors(
+        self, values: Mapping[str, float], n_elements: int
+    ) -> np.ndarray | None:
+        """Optional per-element multipliers of the static thresholds (presliding); None = all 1."""
+        return None
+
+    @classmethod
+    def has_slip_hook(cls) -> bool:
+        return cls.on_slip_end is not Effect.on_slip_end
+
+    @classmethod
+    def has_output_hook(cls) -> bool:
+        return cls.transform_output is not Effect.transform_output

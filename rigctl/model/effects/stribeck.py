@@ -1,0 +1,30 @@
+"""``stribeck``: velocity weakening of the kinetic friction (shared/spec/model.md).
+
+    mu_k(V) = mu_k + (mu_s - mu_k) exp(-(|V| / v_s)^d)
+
+Stribeck 1902; the exponential form as in Armstrong-Helouvry et al., Automatica 30 (1994). At the
+onset of a slip (V -> 0) the friction equals mu_s and weakens as the slip accelerates, so the stress
+drop and the trough depend on the slip velocity. Off: v_s = 0 (the exponential vanishes exactly).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from rigctl.model.effects.base import CoreParams, Effect
+from rigctl.model.params import ParamSpec
+
+
+class Stribeck(Effect):
+    name = "stribeck"
+    summary = "velocity weakening of kinetic friction"
+    signature = "stress drop and trough depend on slip velocity / drive velocity"
+    reveal_protocol = "velocity steps over two decades of drive velocity"
+    params = (
+        ParamSpec("vs_m_per_s", 5e-3, 0.0, 10.0, "m/s", "Stribeck velocity v_s", off=0.0),
+        ParamSpec("d", 1.0, 0.2, 4.0, "-", "Stribeck exponent d", identify=False, off=1.0),
+    )
+
+    def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
+        core["stribeck_vs_m_per_s"] = values["vs_m_per_s"]
+        core["stribeck_d"] = values["d"]

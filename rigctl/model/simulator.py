@@ -1,0 +1,274 @@
+"""Run the model: whole histories (:meth:`Simulator.run`) or step by step (:class:`Stepper`).
+
+Both drive the compiled kernel (:mod:`rigctl.model.kernel`) over piecewise-linear inputs, call the
+effects' slip hooks after every global slip, apply output hooks, and return :class:`SimResult`.
+Same inputs, parameters and seed give bit-identical output.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.model import layout
+from rigctl.model.drive import Drive, check_fn
+from rigctl.model.effects import CoreParams, SlipContext
+from rigctl.model.kernel import _write_sample, advance
+from rigctl.model.noise import NoiseModel
+from rigctl.model.params import ParameterError
+from rigctl.model.result import SimResult, SlipEvent
+from rigctl.model.spec import CoreSetup, ModelSpec
+
+ProgressFn = Callable[[float, float], None]
+"""progress(t_done_s, t_total_s)"""
+
+
+class _Integration:
+    """Integrator state (kernel arrays) and the glue that calls hooks between kernel calls."""
+
+    def __init__(self, setup: CoreSetup, x_stage0_m: float, fn0_N: float) -> None:
+        self.setup = setup
+        self.cp = setup.cp.copy()
+        self.core = CoreParams(self.cp)
+        n = setup.pw0.shape[0]
+        self.n = n
+        self.fs = np.zeros(layout.N_FSTATE)
+        self.ist = np.zeros(layout.N_ISTATE, dtype=np.int64)
+        self.fs[layout.S_X] = x_stage0_m
+        self.fs[layout.S_X_INIT] = x_stage0_m
+        self.fs[layout.S_THETA] = setup.theta0_s
+        self.fs[layout.S_XS] = x_stage0_m
+        self.fs[layout.S_FN] = fn0_N
+        self.ist[layout.I_SIGN] = 1
+        from rigctl.model.friction_laws import element_stiffness
+
+        k = element_stiffness(self.cp, 0, fn0_N, n)
+        self.fs[layout.S_K_USED] = k
+        self.g = np.full(n, -k * x_stage0_m)  # all elements stuck, unloaded
+        self.mode = np.zeros(n, dtype=np.int8)
+        self.ev = np.full((64, layout.N_ECOLS), np.nan)
+        self.events: list[SlipEvent] = []
+        self.stage_names = ("initial", "stable")
+
+    def integrate(
+        self,
+        kt_t: np.ndarray,
+        kt_xs: np.ndarray,
+        kt_fn: np.ndarray,
+        t_out: np.ndarray,
+        record_elements: bool,
+        progress: ProgressFn | None = None,
+    ) -> dict[str, np.ndarray]:
+        n_out = t_out.shape[0]
+        out = {
+            "ft": np.empty(n_out), "fi": np.empty(n_out), "x": np.empty(n_out),
+            "v": np.empty(n_out), "xs": np.empty(n_out), "fn": np.empty(n_out),
+            "stage": np.empty(n_out, dtype=np.uint8), "slip": np.empty(n_out, dtype=np.uint8),
+            "elem": np.zeros((n_out if record_elements else 1, self.n), dtype=np.int8),
+        }
+        self.ist[layout.I_KNOT] = 0
+        self.ist[layout.I_OUT] = 0
+        t_end = float(kt_t[-1])
+        hooks = self.setup.slip_hooks
+        # progress is reported at chunk boundaries of about 1 % of the span
+        chunk = max((t_end - self.fs[layout.S_T]) / 100.0, 1e-3) if progress else np.inf
+        while True:
+            t_stop = min(t_end, self.fs[layout.S_T] + chunk)
+            code = advance(
+                self.cp, self.fs, self.ist, self.g, self.mode,
+                self.setup.pw0, self.setup.pw1, self.setup.p_uni,
+                kt_t, kt_xs, kt_fn, t_out,
+                out["ft"], out["fi"], out["x"], out["v"], out["xs"], out["fn"],
+                out["stage"], out["slip"], out["elem"], self.ev,
+                t_stop, bool(hooks), record_elements,
+            )
+            if code == layout.RET_EVENT_TABLE_FULL:
+                grown = np.full((self.ev.shape[0] * 2, layout.N_ECOLS), np.nan)
+                grown[: self.ev.shape[0]] = self.ev
+                self.ev = grown
+            elif code == layout.RET_SLIP_END:
+                self._run_hooks()
+            else:
+                if progress is not None:
+                    progress(float(self.fs[layout.S_T]), t_end)
+                if t_stop >= t_end:
+                    break
+        return out
+
+    def _run_hooks(self) -> None:
+        row = self.ev[self.ist[layout.I_NEVENT] - 1]
+        ctx = SlipContext(
+            t_s=float(row[layout.E_T_END]),
+            n_slips=int(self.ist[layout.I_NSLIP]),
+            slip_m=float(row[layout.E_SLIP]),
+            cumulative_slip_m=float(self.fs[layout.S_SLIP_CUM]),
+            fn_N=float(row[layout.E_FN]),
+            peak_N=float(row[layout.E_PEAK]),
+            trough_N=float(row[layout.E_TROUGH]),
+        )
+        for entry in self.setup.slip_hooks:
+            entry.effect.on_slip_end(self.core, entry.values, ctx)
+
+    def take_events(self, t_first: float, t_last: float) -> list[SlipEvent]:
+        """Completed events so far not yet returned (by count)."""
+        n_done = int(self.ist[layout.I_NEVENT])
+        new = []
+        for i in range(len(self.events), n_done):
+            r = self.ev[i]
+            new.append(
+                SlipEvent(
+                    t_start_s=float(r[layout.E_T_START]),
+                    t_end_s=float(r[layout.E_T_END]),
+                    peak_N=float(r[layout.E_PEAK]),
+                    trough_N=float(r[layout.E_TROUGH]),
+                    slip_m=float(r[layout.E_SLIP]),
+                    stage=self.stage_names[int(r[layout.E_STAGE])],
+                    fn_N=float(r[layout.E_FN]),
+                )
+            )
+        self.events.extend(new)
+        return new
+
+    def result(
+        self, out: dict[str, np.ndarray], t_out: np.ndarray, new_events: list[SlipEvent],
+        record_elements: bool,
+    ) -> SimResult:
+        x = out["x"]
+        delta = x - self.fs[layout.S_X_INIT]
+        elem = out["elem"] if record_elements else np.zeros((t_out.shape[0], self.n), np.int8)
+        res = SimResult(
+            t_s=t_out.copy(), x_stage_m=out["xs"], fn_N=out["fn"], ft_N=out["ft"],
+            f_interface_N=out["fi"], x_specimen_m=x, v_specimen_m_s=out["v"], delta_m=delta,
+            d1_m=delta.copy(), d2_m=np.zeros_like(delta), stage=out["stage"],
+            slipping=out["slip"].astype(bool), element_mode=elem,
+            p_tables=self.setup.p_tables, events=new_events,
+        )
+        for entry in self.setup.output_hooks:
+            entry.effect.transform_output(res, entry.values)
+        return res
+
+
+@dataclass(frozen=True)
+class StepperState:
+    """Instantaneous state of a stepper (SI units)."""
+
+    t_s: float
+    x_stage_m: float
+    fn_N: float
+    ft_N: float
+    f_interface_N: float
+    delta_m: float
+    x_specimen_m: float
+    v_specimen_m_s: float
+    stage: int
+    p_elements: np.ndarray
+    sliding_elements: np.ndarray
+    n_slips: int
+
+
+class Simulator:
+    """The stick-slip model of the rig at the sensor sample rate."""
+
+    def __init__(self, model: ModelSpec, sample_rate_hz: float = 1024.0) -> None:
+        if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+            raise ParameterError(f"sample rate must be positive, got {sample_rate_hz}")
+        self.model = model
+        self.sample_rate_hz = float(sample_rate_hz)
+        self._setup = model.core_setup()
+
+    def run(
+        self,
+        drive: Drive,
+        *,
+        noise: bool | NoiseModel = False,
+        seed: int | None = None,
+        record_elements: bool = True,
+        progress: ProgressFn | None = None,
+    ) -> SimResult:
+        """Simulate the whole drive; samples at k / rate for k = 0 .. duration * rate."""
+        n_out = int(np.floor(drive.duration_s * self.sample_rate_hz + 1e-9)) + 1
+        t_out = np.arange(n_out, dtype=np.float64) / self.sample_rate_hz
+        integ = _Integration(self._setup, float(drive.x_stage_m[0]), float(drive.fn_N[0]))
+        out = integ.integrate(drive.t_s, drive.x_stage_m, drive.fn_N, t_out, record_elements,
+                              progress)
+        res = integ.result(out, t_out, integ.take_events(0.0, drive.duration_s), record_elements)
+        res.metadata.update(
+            {"model": self.model.describe(), "sample_rate_hz": f"{self.sample_rate_hz:g}"}
+        )
+        if noise:
+            model = noise if isinstance(noise, NoiseModel) else NoiseModel()
+            model.apply(res, np.random.default_rng(seed))
+            res.metadata["noise"] = model.describe()
+            res.metadata["seed"] = str(seed)
+        return res
+
+    def stepper(self, x_stage_m: float = 0.0, fn_N: float = 0.0) -> Stepper:
+        return Stepper(self, x_stage_m, fn_N)
+
+
+class Stepper:
+    """Advance the model piece by piece, e.g. under a virtual rig's clock."""
+
+    def __init__(self, sim: Simulator, x_stage_m: float, fn_N: float) -> None:
+        self._sim = sim
+        self._integ = _Integration(sim._setup, float(x_stage_m), check_fn(fn_N))
+        self._next_k = 0
+        self._xs = float(x_stage_m)
+        self._fn = float(fn_N)
+
+    @property
+    def t_s(self) -> float:
+        return float(self._integ.fs[layout.S_T])
+
+    def advance(self, t_end_s: float, x_stage_end_m: float, fn_end_N: float) -> SimResult:
+        """Ramp the inputs linearly to the given end values over (t_now, t_end]; return samples."""
+        t0 = self.t_s
+        t1 = float(t_end_s)
+        x1 = float(x_stage_end_m)
+        f1 = check_fn(fn_end_N)
+        if not np.isfinite(t1) or not np.isfinite(x1):
+            raise ParameterError("stepper inputs must be finite")
+        if t1 < t0:
+            raise ParameterError(f"cannot step back in time ({t1} s < {t0} s)")
+        rate = self._sim.sample_rate_hz
+        k_last = int(np.floor(t1 * rate + 1e-9))
+        ks = np.arange(self._next_k, k_last + 1)
+        t_out = ks / rate
+        if t1 == t0:
+            kt_t = np.array([t0, t0 + 1e-12])
+            kt_x = np.array([self._xs, x1])
+            kt_f = np.array([self._fn, f1])
+            t_stop_knots = (kt_t, kt_x, kt_f)
+        else:
+            t_stop_knots = (np.array([t0, t1]), np.array([self._xs, x1]), np.array([self._fn, f1]))
+        out = self._integ.integrate(*t_stop_knots, t_out, True)
+        self._next_k = k_last + 1
+        self._xs, self._fn = x1, f1
+        return self._integ.result(out, t_out, self._integ.take_events(t0, t1), True)
+
+    @property
+    def state(self) -> StepperState:
+        integ = self._integ
+        one = np.empty(1)
+        st = np.empty(1, dtype=np.uint8)
+        sl = np.empty(1, dtype=np.uint8)
+        el = np.empty((1, integ.n), dtype=np.int8)
+        outs = [np.empty(1) for _ in range(6)]
+        slipped = integ.ist[layout.I_SLIPPED]
+        _write_sample(
+            integ.cp, integ.fs, integ.ist, integ.g, integ.mode, integ.setup.pw0,
+            integ.setup.pw1, 0, self._xs, 0.0, self._fn, *outs, st, sl, el, True,
+        )
+        integ.ist[layout.I_SLIPPED] = slipped
+        del one
+        stage = int(integ.ist[layout.I_STAGE])
+        return StepperState(
+            t_s=self.t_s, x_stage_m=self._xs, fn_N=float(outs[5][0]), ft_N=float(outs[0][0]),
+            f_interface_N=float(outs[1][0]),
+            delta_m=float(integ.fs[layout.S_X] - integ.fs[layout.S_X_INIT]),
+            x_specimen_m=float(integ.fs[layout.S_X]), v_specimen_m_s=float(integ.fs[layout.S_V]),
+            stage=stage, p_elements=integ.setup.p_tables[stage].copy(),
+            sliding_elements=el[0] != 0, n_slips=int(integ.ist[layout.I_NSLIP]),
+        )

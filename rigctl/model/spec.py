@@ -1,0 +1,246 @@
+"""Model specification: a base (``paper`` or ``classic``) plus effects, with their parameter values.
+
+``build_model`` is the one way to make a model; a :class:`ModelSpec` is immutable and turns itself into
+the coefficient arrays of the compiled integrator (:meth:`ModelSpec.core_setup`).
+
+Flat parameter names: base parameters by their name (``mu_s``); parameters of an effect that is part
+of the base (``stress_evolution`` in ``paper``) by their own name too (``mu_smax``); parameters of an
+added effect as ``effect.param`` (``rate_state.b``). Qualified names are accepted everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rigctl.model import layout
+from rigctl.model.effects import LIBRARY, CoreParams, Effect
+from rigctl.model.effects.stress_evolution import p_linear
+from rigctl.model.params import BASE_PARAMS, ParameterError, ParamInfo, check_values
+
+BASES: dict[str, tuple[str, ...]] = {
+    "paper": ("stress_evolution",),
+    "classic": (),
+}
+"""Base models: ``paper`` = Han et al. 2022 (Sec. 5); ``classic`` = uniform stress, constant
+stiffness, mu_s/mu_k (the paper's model without ``stress_evolution``)."""
+
+EffectLike = str | Effect | type[Effect]
+
+
+@dataclass(frozen=True)
+class EffectEntry:
+    effect: Effect
+    values: Mapping[str, float]
+    in_base: bool
+
+
+@dataclass(frozen=True)
+class CoreSetup:
+    """Everything the integrator needs, built from a ModelSpec."""
+
+    cp: np.ndarray
+    pw0: np.ndarray
+    pw1: np.ndarray
+    p_uni: np.ndarray
+    p_tables: np.ndarray
+    theta0_s: float
+    slip_hooks: tuple[EffectEntry, ...]
+    output_hooks: tuple[EffectEntry, ...]
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    base: str
+    base_values: Mapping[str, float]
+    effects: tuple[EffectEntry, ...] = field(default_factory=tuple)
+
+    # --- introspection ------------------------------------------------------------------------
+    @property
+    def n_elements(self) -> int:
+        return int(self.base_values["n_elements"])
+
+    @property
+    def effect_names(self) -> list[str]:
+        """Names of the added effects (not those that are part of the base)."""
+        return [e.effect.name for e in self.effects if not e.in_base]
+
+    def flat_name(self, entry: EffectEntry, param: str) -> str:
+        return param if entry.in_base else f"{entry.effect.name}.{param}"
+
+    def values(self) -> dict[str, float]:
+        """All parameter values by flat name."""
+        out = dict(self.base_values)
+        for e in self.effects:
+            for k, v in e.values.items():
+                out[self.flat_name(e, k)] = v
+        return out
+
+    def parameter_table(self) -> list[ParamInfo]:
+        rows = [
+            ParamInfo(s.name, float(self.base_values[s.name]), s.lower, s.upper, s.unit, "base",
+                      s.identify, s.doc)
+            for s in BASE_PARAMS
+        ]
+        for e in self.effects:
+            for s in e.effect.params:
+                rows.append(
+                    ParamInfo(self.flat_name(e, s.name), float(e.values[s.name]), s.lower, s.upper,
+                              s.unit, e.effect.name, s.identify, s.doc)
+                )
+        return rows
+
+    def with_values(self, updates: Mapping[str, float]) -> ModelSpec:
+        """A copy with some parameters changed (flat or qualified names); checks bounds."""
+        base_up: dict[str, float] = {}
+        eff_up: dict[str, dict[str, float]] = {}
+        for key, value in updates.items():
+            target, pname = self._resolve(key)
+            if target is None:
+                base_up[pname] = value
+            else:
+                eff_up.setdefault(target, {})[pname] = value
+        new_base = check_values(BASE_PARAMS, {**self.base_values, **base_up}, "base")
+        entries = []
+        for e in self.effects:
+            vals = dict(e.values)
+            vals.update(eff_up.get(e.effect.name, {}))
+            entries.append(EffectEntry(e.effect, check_values(e.effect.params, vals,
+                                                              e.effect.name), e.in_base))
+        return ModelSpec(self.base, new_base, tuple(entries))
+
+    def _resolve(self, key: str) -> tuple[str | None, str]:
+        if "." in key:
+            ename, pname = key.split(".", 1)
+            for e in self.effects:
+                if e.effect.name == ename:
+                    if pname not in {p.name for p in e.effect.params}:
+                        raise ParameterError(f"effect '{ename}' has no parameter '{pname}'")
+                    return ename, pname
+            raise ParameterError(f"parameter '{key}': effect '{ename}' is not in this model")
+        if key in self.base_values:
+            return None, key
+        for e in self.effects:
+            if e.in_base and key in {p.name for p in e.effect.params}:
+                return e.effect.name, key
+        known = sorted(self.values())
+        raise ParameterError(f"unknown parameter '{key}' (known: {', '.join(known)})")
+
+    # --- the integrator's view ----------------------------------------------------------------
+    def core_setup(self) -> CoreSetup:
+        n = self.n_elements
+        cp = np.zeros(layout.N_PARAMS)
+        bv = self.base_values
+        cp[layout.P_M] = bv["m_kg"]
+        cp[layout.P_C0] = bv["c0_N_s_per_m"]
+        cp[layout.P_K0] = bv["k0_N_per_m"]
+        cp[layout.P_KTS] = bv["kts_N_per_m"]
+        cp[layout.P_MUS] = bv["mu_s"]
+        cp[layout.P_MUK] = bv["mu_k"]
+        # coefficients owned by effects start at their off values (the classic model)
+        cp[layout.P_KT0] = bv["kts_N_per_m"]
+        cp[layout.P_MUSMAX] = bv["mu_s"]
+        cp[layout.P_SD] = 1.0
+        cp[layout.P_RS_DC] = 1e-6
+        cp[layout.P_RS_VREF] = 1e-5
+        cp[layout.P_FNREF_MU] = 300.0
+        cp[layout.P_FNREF_K] = 300.0
+        cp[layout.P_KT_MULT] = 1.0
+        core = CoreParams(cp)
+        factors = np.ones(n)
+        theta0 = 0.0
+        for e in self.effects:
+            e.effect.apply(core, e.values)
+            f = e.effect.element_threshold_factors(e.values, n)
+            if f is not None:
+                factors = factors * np.asarray(f, dtype=np.float64)
+            theta_fn = getattr(e.effect, "initial_theta_s", None)
+            if callable(theta_fn):
+                theta0 = float(theta_fn(e.values))
+        p_lin = p_linear(n, float(cp[layout.P_PSLOPE]))
+        p_uni = np.full(n, 1.0 / n)
+        return CoreSetup(
+            cp=cp,
+            pw0=np.ascontiguousarray(p_lin * factors),
+            pw1=np.ascontiguousarray(p_uni * factors),
+            p_uni=p_uni,
+            p_tables=np.vstack([p_lin, p_uni]),
+            theta0_s=theta0,
+            slip_hooks=tuple(e for e in self.effects if e.effect.has_slip_hook()),
+            output_hooks=tuple(e for e in self.effects if e.effect.has_output_hook()),
+        )
+
+    def describe(self) -> str:
+        added = ", ".join(self.effect_names) or "none"
+        return f"base={self.base}, effects={added}"
+
+
+def _as_effect(item: EffectLike, registry: Mapping[str, type[Effect]]) -> Effect:
+    if isinstance(item, Effect):
+        return item
+    if isinstance(item, type) and issubclass(item, Effect):
+        return item()
+    if isinstance(item, str):
+        cls = registry.get(item)
+        if cls is None:
+            raise ParameterError(
+                f"unknown effect '{item}' (known: {', '.join(sorted(registry))})"
+            )
+        return cls()
+    raise ParameterError(f"not an effect: {item!r}")
+
+
+def effect_names() -> list[str]:
+    """The canonical names of the effect library."""
+    return list(LIBRARY)
+
+
+def build_model(
+    base: str = "paper",
+    effects: Iterable[EffectLike] = (),
+    params: Mapping[str, float] | None = None,
+    effect_params: Mapping[str, Mapping[str, float]] | None = None,
+    registry: Mapping[str, type[Effect]] | None = None,
+) -> ModelSpec:
+    """Build a model from a base, effects (names, instances or classes) and parameter overrides."""
+    if base not in BASES:
+        raise ParameterError(f"unknown base '{base}' (known: {', '.join(BASES)})")
+    reg: dict[str, type[Effect]] = dict(LIBRARY)
+    if registry:
+        reg.update(registry)
+    base_values = check_values(BASE_PARAMS, {}, "base")
+    entries: list[EffectEntry] = []
+    seen: set[str] = set()
+    items: list[tuple[EffectLike, bool]] = [(name, True) for name in BASES[base]]
+    items += [(e, False) for e in effects]
+    for item, in_base in items:
+        eff = _as_effect(item, reg)
+        if not eff.name:
+            raise ParameterError(f"effect {type(eff).__name__} has no name")
+        if eff.name in seen:
+            if eff.name in BASES[base]:
+                continue  # already part of the base
+            raise ParameterError(f"effect '{eff.name}' given twice")
+        seen.add(eff.name)
+        vals = check_values(eff.params, eff.default_values(base_values), eff.name)
+        entries.append(EffectEntry(eff, vals, in_base))
+    spec = ModelSpec(base, base_values, tuple(entries))
+    updates: dict[str, float] = dict(params or {})
+    for ename, pvals in (effect_params or {}).items():
+        if ename not in seen:
+            raise ParameterError(f"parameters given for effect '{ename}', which is not in the model")
+        for k, v in pvals.items():
+            updates[f"{ename}.{k}"] = v
+    return spec.with_values(updates) if updates else spec
+
+
+def model_with_effects_off(spec: ModelSpec, names: Sequence[str]) -> ModelSpec:
+    """The same model with the named effects set to their off values (for reduction tests)."""
+    updates: dict[str, float] = {}
+    for e in spec.effects:
+        if e.effect.name in names:
+            for k, v in e.effect.off_values(spec.base_values).items():
+                updates[spec.flat_name(e, k)] = v
+    return spec.with_values(updates)
