@@ -15,8 +15,23 @@ from rigctl.model.simulator import Simulator, Stepper, StepperState
 from rigctl.model.spec import BASES, ModelSpec, build_model, effect_names
 
 __all__ = [
-    "BASES", "LIBRARY", "MAX_NORMAL_FORCE_N", "CoreParams", "Drive", "Effect", "ModelSpec",
-    "NoiseModel", "ParamInfo", "ParamSpec", "ParameterError", "SimResult", "SimResult",
-    "Simulator", "SlipContext", "SlipEvent", "Stepper", "StepperState", "build_model",
+    "BASES",
+    "LIBRARY",
+    "MAX_NORMAL_FORCE_N",
+    "CoreParams",
+    "Drive",
+    "Effect",
+    "ModelSpec",
+    "NoiseModel",
+    "ParamInfo",
+    "ParamSpec",
+    "ParameterError",
+    "SimResult",
+    "Simulator",
+    "SlipContext",
+    "SlipEvent",
+    "Stepper",
+    "StepperState",
+    "build_model",
     "effect_names",
 ]

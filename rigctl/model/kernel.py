@@ -20,6 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
+from rigctl.model.fastpath import fast_stick_run
 from rigctl.model.friction_laws import (
     element_stiffness,
     mu_kinetic,
@@ -67,7 +68,6 @@ from rigctl.model.layout import (
     S_X,
     S_YF,
 )
-from rigctl.model.fastpath import fast_stick_run
 from rigctl.model.modal import filtered_drive_force, modal_solution, position, velocity
 
 _BISECT_ITERS = 60
@@ -311,7 +311,7 @@ def _linear_step(
             step = h / 8.0
             if wd > 0.0:
                 step = min(h, 2.0 * math.pi / wd / 16.0)
-            n_grid = max(1, int(math.ceil(h / step)))
+            n_grid = max(1, math.ceil(h / step))
             lo_t = 0.0
             hi_t = -1.0
             for j in range(1, n_grid + 1):

@@ -73,8 +73,9 @@ class SimResult:
         """Samples [start, stop) with the events that start inside that span."""
         t0 = self.t_s[start] if stop > start else np.inf
         t1 = self.t_s[stop - 1] if stop > start else -np.inf
+        arrays = {n: getattr(self, n)[start:stop] for n in _ARRAYS}
         return SimResult(
-            *(getattr(self, n)[start:stop] for n in _ARRAYS),
+            **arrays,
             p_tables=self.p_tables,
             events=[e for e in self.events if t0 <= e.t_start_s <= t1],
             metadata=dict(self.metadata),
@@ -106,9 +107,9 @@ def concatenate(parts: list[SimResult]) -> SimResult:
     if not parts:
         raise ValueError("nothing to concatenate")
     first = parts[0]
-    arrays = [np.concatenate([getattr(p, n) for p in parts]) for n in _ARRAYS]
+    arrays = {n: np.concatenate([getattr(p, n) for p in parts]) for n in _ARRAYS}
     return SimResult(
-        *arrays,
+        **arrays,
         p_tables=first.p_tables,
         events=[e for p in parts for e in p.events],
         metadata=dict(first.metadata),

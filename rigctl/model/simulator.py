@@ -62,7 +62,7 @@ class _Integration:
         progress: ProgressFn | None = None,
     ) -> dict[str, np.ndarray]:
         n_out = t_out.shape[0]
-        out = {
+        out: dict[str, np.ndarray] = {
             "ft": np.empty(n_out), "fi": np.empty(n_out), "x": np.empty(n_out),
             "v": np.empty(n_out), "xs": np.empty(n_out), "fn": np.empty(n_out),
             "stage": np.empty(n_out, dtype=np.uint8), "slip": np.empty(n_out, dtype=np.uint8),
@@ -251,18 +251,17 @@ class Stepper:
     @property
     def state(self) -> StepperState:
         integ = self._integ
-        one = np.empty(1)
         st = np.empty(1, dtype=np.uint8)
         sl = np.empty(1, dtype=np.uint8)
         el = np.empty((1, integ.n), dtype=np.int8)
-        outs = [np.empty(1) for _ in range(6)]
+        outs: list[np.ndarray] = [np.empty(1) for _ in range(6)]
         slipped = integ.ist[layout.I_SLIPPED]
         _write_sample(
             integ.cp, integ.fs, integ.ist, integ.g, integ.mode, integ.setup.pw0,
-            integ.setup.pw1, 0, self._xs, 0.0, self._fn, *outs, st, sl, el, True,
+            integ.setup.pw1, 0, self._xs, 0.0, self._fn,
+            outs[0], outs[1], outs[2], outs[3], outs[4], outs[5], st, sl, el, True,
         )
         integ.ist[layout.I_SLIPPED] = slipped
-        del one
         stage = int(integ.ist[layout.I_STAGE])
         return StepperState(
             t_s=self.t_s, x_stage_m=self._xs, fn_N=float(outs[5][0]), ft_N=float(outs[0][0]),
