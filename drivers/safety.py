@@ -1,0 +1,245 @@
+"""Interlocks: the process-wide emergency stop and the normal-force guard.
+
+An *interlock* is anything with ``check_command(stage, command)`` that raises to refuse a command.
+Every :class:`~drivers.interfaces.LoadingStage` checks its interlocks before it sends ``enable``,
+``home`` or a move, and checks them again just after sending: if an interlock tripped in between,
+the stage sends an emergency stop straight away, so a trigger racing a command can never leave the
+stage moving. ``stop``, ``emergency_stop``, ``disable`` and reads are never refused.
+
+* :class:`EmergencyStop` - every stage registers itself with one (by default the process-wide
+  :func:`default_emergency_stop`). ``trigger(reason)`` may be called from any thread; it
+  latches, keeps the first reason, and sends ``emergency_stop()`` to every registered stage (a
+  stage that fails to answer does not keep the others from being stopped). Motion commands are
+  then refused with :class:`~drivers.errors.EmergencyStopActive` until ``reset()``.
+* :class:`ForceGuard` - the acquisition layer feeds it normal-force readings; when |Fn| exceeds the
+  limit (default 800 N, the rig's maximum load) or a reading is not finite (the guard can no longer
+  vouch for the load), it emergency-stops the guarded stage, records a
+  :class:`~drivers.errors.ForceLimitError`, and refuses that stage's motion commands until reset.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+import weakref
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from drivers.errors import EmergencyStopActive, ForceLimitError
+
+if TYPE_CHECKING:
+    from drivers.interfaces import LoadingStage
+
+_log = logging.getLogger(__name__)
+
+DEFAULT_FORCE_LIMIT_N = 800.0
+"""Maximum normal load of the rig's normal loading stage (seed, Section 2.1)."""
+
+
+class Interlock(Protocol):
+    """Something that may refuse a stage command by raising a :class:`DeviceError`."""
+
+    def check_command(self, stage: LoadingStage, command: str) -> None:
+        """Raise to refuse ``command`` on ``stage``; return to allow it."""
+        ...
+
+
+@dataclass(frozen=True)
+class StopFailure:
+    """A stage that could not be told to stop during a trigger, and why."""
+
+    stage_name: str
+    error: BaseException
+
+
+class EmergencyStop:
+    """A latched emergency stop over a set of registered stages (thread-safe, idempotent)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._stages: list[weakref.ref[LoadingStage]] = []
+        self._reason: str | None = None
+        self._triggered_monotonic_ns: int | None = None
+        self._failures: list[StopFailure] = []
+
+    # registration -------------------------------------------------------------------------------
+    def register(self, stage: LoadingStage) -> None:
+        """Add ``stage`` (held by a weak reference; registering twice is harmless)."""
+        with self._lock:
+            self._prune()
+            if all(ref() is not stage for ref in self._stages):
+                self._stages.append(weakref.ref(stage))
+
+    def unregister(self, stage: LoadingStage) -> None:
+        """Remove ``stage`` (no error if it was not registered)."""
+        with self._lock:
+            self._stages = [ref for ref in self._stages if ref() not in (None, stage)]
+
+    def stages(self) -> list[LoadingStage]:
+        """The stages currently registered."""
+        with self._lock:
+            self._prune()
+            return [s for s in (ref() for ref in self._stages) if s is not None]
+
+    def _prune(self) -> None:
+        self._stages = [ref for ref in self._stages if ref() is not None]
+
+    # trigger / reset ----------------------------------------------------------------------------
+    def trigger(self, reason: str) -> list[StopFailure]:
+        """Latch and emergency-stop every registered stage; returns the stages that failed.
+
+        Safe from any thread and idempotent: the first reason is kept, later triggers send the
+        stop again (harmless on a stopped stage).
+        """
+        with self._lock:
+            if self._reason is None:
+                self._reason = reason
+                self._triggered_monotonic_ns = time.monotonic_ns()
+                _log.critical("emergency stop: %s", reason)
+            self._prune()
+            stages = [s for s in (ref() for ref in self._stages) if s is not None]
+        failures = _stop_all(stages)
+        with self._lock:
+            self._failures.extend(failures)
+        return failures
+
+    def reset(self) -> None:
+        """Unlatch: motion commands are accepted again (stages stay stopped until commanded)."""
+        with self._lock:
+            if self._reason is not None:
+                _log.warning("emergency stop reset (was: %s)", self._reason)
+            self._reason = None
+            self._triggered_monotonic_ns = None
+            self._failures = []
+
+    @property
+    def latched(self) -> bool:
+        """True from a trigger until reset."""
+        return self._reason is not None
+
+    @property
+    def reason(self) -> str | None:
+        """The reason given to the first trigger since the last reset."""
+        return self._reason
+
+    @property
+    def triggered_monotonic_ns(self) -> int | None:
+        """``time.monotonic_ns()`` of the first trigger since the last reset."""
+        return self._triggered_monotonic_ns
+
+    @property
+    def failures(self) -> list[StopFailure]:
+        """Stages that raised when told to stop since the last reset."""
+        with self._lock:
+            return list(self._failures)
+
+    def check_command(self, stage: LoadingStage, command: str) -> None:
+        """Interlock hook: refuse every motion command while latched."""
+        reason = self._reason
+        if reason is not None:
+            raise EmergencyStopActive(stage.name, reason)
+
+
+def _stop_all(stages: Iterable[LoadingStage]) -> list[StopFailure]:
+    failures = []
+    for stage in stages:
+        try:
+            stage.emergency_stop()
+        except Exception as exc:  # one dead stage must not keep the others moving
+            _log.critical("emergency stop of %s failed: %s", stage.name, exc)
+            failures.append(StopFailure(stage.name, exc))
+    return failures
+
+
+_DEFAULT = EmergencyStop()
+
+
+def default_emergency_stop() -> EmergencyStop:
+    """The process-wide emergency stop every stage registers with unless given another."""
+    return _DEFAULT
+
+
+class ForceGuard:
+    """Emergency-stops a (normal) stage when |Fn| exceeds ``limit_N``; refuses its commands after.
+
+    Feed it every block of normal-force readings (``feed(fn_N)``, from any thread). The guard
+    attaches itself as an interlock of ``stage``. ``also_trigger`` optionally latches an
+    :class:`EmergencyStop` as well (stopping every stage, e.g. the tangential one too).
+    """
+
+    def __init__(
+        self,
+        stage: LoadingStage,
+        limit_N: float = DEFAULT_FORCE_LIMIT_N,
+        *,
+        also_trigger: EmergencyStop | None = None,
+    ) -> None:
+        if not (isinstance(limit_N, int | float) and math.isfinite(limit_N) and limit_N > 0):
+            raise ValueError(f"force limit must be a finite positive number of N: {limit_N!r}")
+        self._stage = stage
+        self._limit_N = float(limit_N)
+        self._also_trigger = also_trigger
+        self._lock = threading.Lock()
+        self._trip: ForceLimitError | None = None
+        stage.add_interlock(self)
+
+    @property
+    def limit_N(self) -> float:
+        """The force limit in newtons (applies to |Fn|)."""
+        return self._limit_N
+
+    @property
+    def tripped(self) -> bool:
+        """True from a trip until :meth:`reset`."""
+        return self._trip is not None
+
+    @property
+    def trip(self) -> ForceLimitError | None:
+        """The error recorded at the trip (force, limit, stage), if tripped."""
+        return self._trip
+
+    def feed(self, fn_N: float | Iterable[float] | np.ndarray) -> ForceLimitError | None:
+        """Check normal-force readings [N]; on the first excess stop the stage and return the error.
+
+        Returns None when no new trip happened (also while already tripped). Never raises for an
+        excess, so an acquisition loop keeps recording; the error is also kept in :attr:`trip`.
+        """
+        values = np.asarray(fn_N, dtype=np.float64).ravel()
+        if values.size == 0:
+            return None
+        bad = ~np.isfinite(values) | (np.abs(values) > self._limit_N)
+        if not bad.any():
+            return None
+        worst = float(values[int(np.argmax(bad))])
+        with self._lock:
+            if self._trip is not None:
+                return None
+            self._trip = ForceLimitError(self._stage.name, worst, self._limit_N)
+        _log.critical("%s", self._trip)
+        try:
+            self._stage.emergency_stop()
+        except Exception as exc:  # the guard stays tripped; the trigger below still runs
+            _log.critical("force guard could not stop %s: %s", self._stage.name, exc)
+        if self._also_trigger is not None:
+            self._also_trigger.trigger(str(self._trip))
+        return self._trip
+
+    def reset(self) -> None:
+        """Accept commands again (the next reading above the limit trips again)."""
+        with self._lock:
+            self._trip = None
+
+    def check_command(self, stage: LoadingStage, command: str) -> None:
+        """Interlock hook: refuse motion commands of the guarded stage while tripped."""
+        trip = self._trip
+        if trip is not None and stage is self._stage:
+            raise ForceLimitError(trip.device, trip.force_N, trip.limit_N)
+
+    def detach(self) -> None:
+        """Stop guarding the stage (removes the interlock)."""
+        self._stage.remove_interlock(self)
