@@ -126,7 +126,7 @@ def write_result(res: SimResult, out: Path, protocol: str) -> None:
     elif suffix in (".h5", ".hdf5", ".nxs"):
         from rigctl.storage import write_measured_run
 
-        write_measured_run(out, run, protocol=protocol)
+        write_measured_run(out, run, protocol=protocol, overwrite=True)
     else:
         raise UsageError(f"--out {out}: unknown format (use .csv or .h5)")
 

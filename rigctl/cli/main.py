@@ -15,6 +15,7 @@ from collections.abc import Sequence
 # Subcommand modules, in the order `rigctl --help` lists them. Add a line to add a command.
 COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_simulate",
+    "rigctl.cli.cmd_files",
 )
 
 

@@ -164,9 +164,7 @@ class _Rows:
     def __init__(self, lines: list[str], header_line: int) -> None:
         after = lines[header_line:]
         self._blank = [i for i, line in enumerate(after) if not line or line.isspace()]
-        self.lines = (
-            [line for line in after if line and not line.isspace()] if self._blank else after
-        )
+        self.lines = [line for line in after if line and not line.isspace()] if self._blank else after
         self._first_line = header_line + 1
 
     def line_number(self, row: int) -> int:
@@ -222,9 +220,7 @@ def _locate_bad_value(src: Path, names: list[str], rows: _Rows) -> None:
             try:
                 float(text)
             except ValueError:
-                raise DataError(
-                    f"non-numeric value {text!r}", path=src, line=line_no, column=name
-                ) from None
+                raise DataError(f"non-numeric value {text!r}", path=src, line=line_no, column=name) from None
 
 
 def _check_required_values(src: Path, columns: dict[str, FloatArray], rows: _Rows) -> None:
@@ -257,9 +253,7 @@ def _check_metadata_item(dst: Path, key: str, value: str) -> None:
     if not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key:
         raise DataError(f"metadata key {key!r} cannot be written as '# key: value'", path=dst)
     if "\n" in value or "\r" in value or value != value.strip():
-        raise DataError(
-            f"metadata value of {key!r} has a line break or surrounding blanks", path=dst
-        )
+        raise DataError(f"metadata value of {key!r} has a line break or surrounding blanks", path=dst)
 
 
 def _format_rows(columns: list[FloatArray]) -> Iterator[str]:

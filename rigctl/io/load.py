@@ -1,6 +1,6 @@
 """Turn what a user names on the command line (files, folders) into measured runs.
 
-Each path is an exchange-format ``.csv`` file, an HDF5 run file (``.h5`` / ``.hdf5``), or a folder:
+Each path is an exchange-format ``.csv`` file, an HDF5 run file (``.h5``, ``.hdf5``, ``.nxs``), or a folder:
 a folder means every ``*.csv`` and ``*.h5`` file directly in it, in sorted name order, each one
 run of a campaign (import-format.md). Missing paths, empty folders and unknown file types raise
 :class:`rigctl.data.DataError` naming the path.
@@ -16,7 +16,7 @@ from rigctl.io.csv_format import read_csv
 from rigctl.storage.reader import read_run
 
 CSV_SUFFIXES = (".csv",)
-RUN_FILE_SUFFIXES = (".h5", ".hdf5")
+RUN_FILE_SUFFIXES = (".h5", ".hdf5", ".nxs")
 FOLDER_PATTERNS = ("*.csv", "*.h5")
 
 

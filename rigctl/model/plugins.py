@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import importlib.metadata
 import importlib.util
+import math
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -33,16 +34,32 @@ def validate_effect_class(cls: type[Effect], origin: str) -> None:
         raise EffectPluginError(
             f"{origin}: effect name '{cls.name}' is taken by the built-in library"
         )
+    seen: set[str] = set()
     for p in cls.params:
         if not isinstance(p, ParamSpec):
             raise EffectPluginError(f"{origin}: {cls.__name__}.params must hold ParamSpec objects")
+        if p.name in seen:
+            raise EffectPluginError(
+                f"{origin}: parameter '{p.name}' of effect '{cls.name}' is declared twice"
+            )
+        seen.add(p.name)
+        if not p.unit:
+            raise EffectPluginError(
+                f"{origin}: parameter '{p.name}' of effect '{cls.name}' has no unit ('-' if none)"
+            )
         if p.off is None and cls.off_values is Effect.off_values:
             raise EffectPluginError(
                 f"{origin}: parameter '{p.name}' of effect '{cls.name}' has no `off` value"
             )
+        if not all(math.isfinite(x) for x in (p.lower, p.default, p.upper)):
+            raise EffectPluginError(f"{origin}: bounds or default of '{p.name}' are not finite")
         if not (p.lower <= p.default <= p.upper):
             raise EffectPluginError(
                 f"{origin}: default of '{p.name}' ({p.default}) is outside its bounds"
+            )
+        if p.off is not None and not (p.lower <= p.off <= p.upper):
+            raise EffectPluginError(
+                f"{origin}: off value of '{p.name}' ({p.off}) is outside its bounds"
             )
     try:
         cls()

@@ -134,6 +134,18 @@ class RunReader:
             out[name] = np.asarray(ds[start:stop], dtype=np.float64)
         return out
 
+    def blocks(self) -> dict[str, np.ndarray]:
+        """The per-block table for re-timing: ``first_sample``, ``counter``, ``host_time_s``,
+        ``dropped`` (equal-length arrays, one row per block the writer received)."""
+        g = self._file[layout.DAQ_BLOCKS]
+        n = min(g[k].shape[0] for k in ("first_sample", "counter", "host_time", "dropped"))
+        return {
+            "first_sample": np.asarray(g["first_sample"][:n], dtype=np.int64),
+            "counter": np.asarray(g["counter"][:n], dtype=np.int64),
+            "host_time_s": np.asarray(g["host_time"][:n], dtype=np.float64),
+            "dropped": np.asarray(g["dropped"][:n], dtype=np.int64),
+        }
+
     def to_measured(self, *, validate: bool = True) -> MeasuredRun:
         """The run as a :class:`MeasuredRun` (required channels + the others as extras).
 

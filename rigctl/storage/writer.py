@@ -284,22 +284,25 @@ class RunWriter:
             )
 
     def _write_pending(self) -> None:
+        """Write the coalesced blocks at their indices; on failure they stay pending (retryable)."""
         if not self._pending_meta:
             return
         blocks, metas = self._pending, self._pending_meta
-        self._pending, self._pending_meta, self._pending_samples = [], [], 0
+        n_new = sum(col["t_s"].shape[0] for col in blocks)
         try:
-            if any(col["t_s"].size for col in blocks):
-                self._extend(self._time, np.concatenate([col["t_s"] for col in blocks]))
+            if n_new:
+                start = self._n_samples
+                _write_at(self._time, start, np.concatenate([col["t_s"] for col in blocks]))
                 for name, dataset in self._channels.items():
-                    self._extend(dataset, np.concatenate([col[name] for col in blocks]))
+                    _write_at(dataset, start, np.concatenate([col[name] for col in blocks]))
             meta = np.array(metas, dtype=object)
             for j, key in enumerate(("first_sample", "counter", "host_time", "dropped")):
                 dtype = np.float64 if key == "host_time" else np.int64
-                self._extend(self._blocks[key], meta[:, j].astype(dtype))
+                _write_at(self._blocks[key], self._n_blocks, meta[:, j].astype(dtype))
         except OSError as exc:
             raise StorageError(f"write failed: {exc}", path=self.path) from exc
-        self._n_samples += sum(col["t_s"].shape[0] for col in blocks)
+        self._pending, self._pending_meta, self._pending_samples = [], [], 0
+        self._n_samples += n_new
         self._n_blocks += len(metas)
 
     @staticmethod
@@ -307,6 +310,14 @@ class RunWriter:
         start = dataset.shape[0]
         dataset.resize(start + values.shape[0], axis=0)
         dataset[start:] = values
+
+
+def _write_at(dataset: h5py.Dataset, start: int, values: np.ndarray) -> None:
+    """Write ``values`` at ``start`` (growing the dataset as needed): repeating it is harmless."""
+    end = start + values.shape[0]
+    if dataset.shape[0] < end:
+        dataset.resize(end, axis=0)
+    dataset[start:end] = values
 
 
 def _fixed_text(text: str, n_bytes: int) -> np.ndarray:

@@ -35,5 +35,5 @@ class ContactDegradation(Effect):
     def on_slip_end(
         self, core: CoreParams, values: Mapping[str, float], ctx: SlipContext
     ) -> None:
-        # after slip n the stable cycle n+1 begins; cycle 1 starts at the first slip's end
+        # stable cycle n is the stick that follows slip n (cycle 1 starts at the first slip's end)
         core["kt_multiplier"] = self.multiplier(values, ctx.n_slips)

@@ -1,6 +1,6 @@
 """``probe_drift``: slow linear drift of the displacement probes.
 
-    d1_meas(t) = d1(t) + r t
+    d1_meas(t) = d1(t) + r t,   t = time since the start of the run (of the stepper, when stepping)
 
 (thermal drift of fibre-optic probes is slow and close to linear over a run; MTI-2100 manual notes
 drift with temperature). Only the measurement changes: delta = d1 - d2 grows with time at equal force.
@@ -29,4 +29,5 @@ class ProbeDrift(Effect):
     )
 
     def transform_output(self, result: SimResult, values: Mapping[str, float]) -> None:
-        result.d1_m += values["rate_m_per_s"] * (result.t_s - result.t_s[0])
+        # t_s counts from the start of the run, also in a Stepper's chunks: the drift continues
+        result.d1_m += values["rate_m_per_s"] * result.t_s
