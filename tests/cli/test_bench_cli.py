@@ -1,0 +1,16 @@
+"""`rigctl bench engine --json --quick` prints one JSON object with the documented keys."""
+
+from __future__ import annotations
+
+import json
+
+from rigctl.cli.main import main
+
+
+def test_bench_engine_quick_json(capsys):
+    assert main(["bench", "engine", "--json", "--quick"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    for key in ("realtime_factor_n10", "realtime_factor_n100", "speedup_vs_rk45",
+                "max_force_error_N"):
+        assert isinstance(data[key], float | int) and data[key] > 0 or key == "max_force_error_N"
+    assert data["max_force_error_N"] >= 0
