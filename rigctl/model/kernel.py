@@ -36,6 +36,8 @@ from rigctl.model.layout import (
     E_T_START,
     E_TROUGH,
     E_X_START,
+    FN_CONTACT_MIN_N,
+    I_CHATTER,
     I_GSLIP,
     I_KNOT,
     I_NEVENT,
@@ -44,6 +46,7 @@ from rigctl.model.layout import (
     I_SIGN,
     I_SLIPPED,
     I_STAGE,
+    MAX_STEPS_PER_SAMPLE,
     P_C0,
     P_CINT,
     P_K0,
@@ -71,8 +74,6 @@ from rigctl.model.layout import (
 from rigctl.model.modal import filtered_drive_force, modal_solution, position, velocity
 
 _BISECT_ITERS = 60
-_MAX_STALLS = 64
-_NUDGE_S = 1e-9
 
 
 @njit(cache=True)
@@ -395,6 +396,50 @@ def _linear_step(
 
 
 @njit(cache=True)
+def _free_step(
+    cp: np.ndarray,
+    fs: np.ndarray,
+    ist: np.ndarray,
+    g: np.ndarray,
+    mode: np.ndarray,
+    p_uni: np.ndarray,
+    ev: np.ndarray,
+    xs0: float,
+    vs: float,
+    fn0: float,
+    h: float,
+) -> bool:
+    """Specimens apart (Fn below FN_CONTACT_MIN_N): the drive alone moves the specimen, exactly.
+
+    Every element is left stuck and unloaded, so contact resumes with a fresh interface.
+    Returns whether a running global slip was closed.
+    """
+    ended = False
+    if ist[I_GSLIP] == 1:
+        _end_global_slip(cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0)
+        ended = True
+    k0 = cp[P_K0]
+    c0 = cp[P_C0]
+    a, b, c1, c2, l1, l2 = modal_solution(
+        cp[P_M], c0, k0, k0 * xs0 + c0 * vs, k0 * vs, fs[S_X], fs[S_V]
+    )
+    if cp[P_TAU_S] > 0.0:
+        fs[S_YF] = filtered_drive_force(
+            fs[S_YF], 1.0 / cp[P_TAU_S], k0, c0, xs0, vs, a, b, c1, c2, l1, l2, h
+        )
+    fs[S_X] = position(a, b, c1, c2, l1, l2, h)
+    fs[S_V] = velocity(b, c1, c2, l1, l2, h)
+    fs[S_T] = fs[S_T] + h
+    fs[S_THETA] = fs[S_THETA] + h
+    k = element_stiffness(cp, ist[I_STAGE], fn0, g.shape[0])
+    for i in range(g.shape[0]):
+        mode[i] = 0
+        g[i] = -k * fs[S_X]
+    fs[S_K_USED] = k
+    return ended
+
+
+@njit(cache=True)
 def _event_at(
     cp: np.ndarray,
     g: np.ndarray,
@@ -672,7 +717,7 @@ def advance(
     nk = kt_t.shape[0]
     nonlinear = slip_is_nonlinear(cp)
     h_rk = 2.0 * math.pi * math.sqrt(cp[P_M] / cp[P_K0]) / 64.0
-    stalls = 0
+    steps = 0
     while True:
         t = fs[S_T]
         j = ist[I_KNOT]
@@ -689,6 +734,7 @@ def advance(
                 o_ft, o_fi, o_x, o_v, o_xs, o_fn, o_stage, o_slip, o_elem, record_elements,
             )
             ist[I_OUT] = io + 1
+            steps = 0
             continue
         if t >= t_stop:
             return RET_DONE
@@ -707,31 +753,33 @@ def advance(
         if fn0 < 0.0:
             fn0 = 0.0
             fn1 = max(fn1, 0.0)
+        steps += 1
+        if fn0 < FN_CONTACT_MIN_N and fn0 + fn1 * h < FN_CONTACT_MIN_N:
+            ended = _free_step(cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0, h)
+            fs[S_T] = target
+            if ended and stop_on_slip_end:
+                return RET_SLIP_END
+            continue
         if fn1 == 0.0 and ist[I_GSLIP] == 0:
             t_lim = min(t_stop, kt_t[j + 1])
             if fast_stick_run(
                 cp, fs, ist, g, mode, pw0, pw1, t_out, t_lim, xs0, vs, fn0,
                 o_ft, o_fi, o_x, o_v, o_xs, o_fn, o_stage, o_slip, o_elem, record_elements,
             ) > 0:
+                steps = 0
                 continue
         if ist[I_GSLIP] == 1 and nonlinear:
             tau, ended = _nonlinear_slip_step(
                 cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0, fn1, h, h_rk
             )
         else:
-            allow = stalls < _MAX_STALLS
+            allow = steps <= MAX_STEPS_PER_SAMPLE
+            if steps == MAX_STEPS_PER_SAMPLE + 1:
+                ist[I_CHATTER] += 1
             tau, ended = _linear_step(
-                cp, fs, ist, g, mode, pw0, pw1, p_uni, ev, xs0, vs, fn0, fn1,
-                h if allow else min(h, _NUDGE_S), allow,
+                cp, fs, ist, g, mode, pw0, pw1, p_uni, ev, xs0, vs, fn0, fn1, h, allow,
             )
-            if not allow:
-                h = min(h, _NUDGE_S)
-                target = t + h
         if tau >= h:
             fs[S_T] = target  # land exactly on the knot / sample time
-        if fs[S_T] <= t:
-            stalls += 1
-        else:
-            stalls = 0
         if ended and stop_on_slip_end:
             return RET_SLIP_END

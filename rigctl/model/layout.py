@@ -65,7 +65,17 @@ I_KNOT = 4  # current knot index
 I_OUT = 5  # next output sample index
 I_NEVENT = 6  # number of events written to the event table
 I_SLIPPED = 7  # a global slip ran since the last output sample (phase flag)
-N_ISTATE = 8
+I_CHATTER = 8  # sample intervals where the event budget ran out (events skipped, see kernel)
+N_ISTATE = 9
+
+FN_CONTACT_MIN_N = 0.01
+"""Below this normal force (half a force-sensor count) the specimens are treated as apart: the
+interface carries no force and its elements restart unloaded when contact resumes."""
+
+MAX_STEPS_PER_SAMPLE = 5000
+"""Event budget per output interval. Chattering of thresholds near zero load can otherwise produce
+events nanoseconds apart; past the budget the rest of the interval is integrated without events and
+the interval is counted in I_CHATTER (reported in the result's metadata)."""
 
 # --- event table columns ----------------------------------------------------------------------
 E_T_START = 0

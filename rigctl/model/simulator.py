@@ -95,6 +95,11 @@ class _Integration:
                     progress(float(self.fs[layout.S_T]), t_end)
                 if t_stop >= t_end:
                     break
+        if self.ist[layout.I_OUT] < n_out:
+            raise RuntimeError(
+                f"integration stopped at t = {self.fs[layout.S_T]:.9g} s before output sample "
+                f"{int(self.ist[layout.I_OUT])} at {t_out[self.ist[layout.I_OUT]]:.9g} s"
+            )
         return out
 
     def _run_hooks(self) -> None:
@@ -147,6 +152,12 @@ class _Integration:
         )
         for entry in self.setup.output_hooks:
             entry.effect.transform_output(res, entry.values)
+        chatter = int(self.ist[layout.I_CHATTER])
+        if chatter:
+            res.metadata["warning"] = (
+                f"event budget exhausted in {chatter} sample interval(s): threshold chattering "
+                "near zero load was integrated without events there"
+            )
         return res
 
 
@@ -191,7 +202,13 @@ class Simulator:
         n_out = int(np.floor(drive.duration_s * self.sample_rate_hz + 1e-9)) + 1
         t_out = np.arange(n_out, dtype=np.float64) / self.sample_rate_hz
         integ = _Integration(self._setup, float(drive.x_stage_m[0]), float(drive.fn_N[0]))
-        out = integ.integrate(drive.t_s, drive.x_stage_m, drive.fn_N, t_out, record_elements,
+        kt_t = drive.t_s
+        if t_out[-1] > kt_t[-1]:
+            # the last sample lies within 1e-9 s past the drive's end (rounding of the duration):
+            # end the last input segment exactly on it
+            kt_t = kt_t.copy()
+            kt_t[-1] = t_out[-1]
+        out = integ.integrate(kt_t, drive.x_stage_m, drive.fn_N, t_out, record_elements,
                               progress)
         res = integ.result(out, t_out, integ.take_events(0.0, drive.duration_s), record_elements)
         res.metadata.update(
@@ -234,6 +251,8 @@ class Stepper:
             raise ParameterError(f"cannot step back in time ({t1} s < {t0} s)")
         rate = self._sim.sample_rate_hz
         k_last = int(np.floor(t1 * rate + 1e-9))
+        if k_last / rate > t1:
+            t1 = k_last / rate  # within 1e-9 of a sample time: end exactly on it
         ks = np.arange(self._next_k, k_last + 1)
         t_out = ks / rate
         if t1 == t0:

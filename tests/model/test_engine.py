@@ -201,3 +201,55 @@ def test_parameter_table_has_units_and_bounds():
     assert {"mu_s", "mu_smax", "kt0_N_per_m", "wear.dmu_s"} <= names
     for r in rows:
         assert r.unit and r.lower <= r.value <= r.upper and r.doc
+
+
+# --- regressions found by the simulated rig (each hung or returned garbage before the fix) ----------
+
+
+def test_no_contact_and_zero_length_steps_return():
+    st = Simulator(build_model("paper")).stepper(x_stage_m=0.0, fn_N=0.0)
+    r = st.advance(0.1, 0.0, 0.0)
+    assert r.n_samples == 103 and np.all(r.ft_N == 0.0)
+    assert st.advance(0.1, 0.0, 0.0).n_samples == 0
+    # apart, the specimen follows the drive: the stage moves, no friction force appears
+    r = st.advance(0.6, 5e-6, 0.0)
+    assert np.all(r.f_interface_N == 0.0)
+    assert abs(r.ft_N[-1]) < 1e-3
+
+
+def test_micro_newton_load_with_moving_stage_is_fast_and_frictionless():
+    st = Simulator(build_model("paper")).stepper(x_stage_m=0.0, fn_N=5e-6)
+    r = st.advance(4 / 1024, 1e-7, 5e-6)
+    assert r.n_samples == 5
+    assert np.all(np.abs(r.f_interface_N) < 1e-5)
+
+
+def test_end_time_a_hair_off_the_sample_grid_writes_every_sample():
+    st = Simulator(build_model("paper")).stepper(x_stage_m=0.0, fn_N=FN)
+    r = st.advance(17.75 - 1e-14, 17.75 * V, FN)
+    assert r.t_s[-1] == 17.75
+    assert np.all(np.abs(r.ft_N) <= 0.25 * FN)
+
+
+def test_chattering_near_zero_load_is_bounded_and_reported():
+    model = build_model("paper", effects=["normal_coupling", "load_dependent_stiffness"])
+    st = Simulator(model).stepper(x_stage_m=0.0, fn_N=0.01)
+    st.advance(1 / 1024, 0.0, 0.3)
+    r = st.advance(2.0, 2e-5, FN)
+    assert np.all(np.isfinite(r.ft_N))
+    assert st.state.t_s == 2.0
+
+
+def test_loss_of_contact_mid_run_unloads_the_interface():
+    drive = Drive(np.array([0.0, 8.0, 8.5, 12.0]), np.array([0.0, 8e-5, 8.5e-5, 1.2e-4]),
+                  np.array([FN, FN, 0.0, 0.0]))
+    res = Simulator(build_model("paper")).run(drive)
+    apart = res.t_s > 8.6
+    assert np.all(res.f_interface_N[apart] == 0.0)
+    assert np.abs(res.ft_N[res.t_s > 11.0]).max() < 0.1
+
+
+def test_duration_rounding_below_a_sample_time_still_writes_the_last_sample():
+    res = Simulator(build_model("classic")).run(Drive.constant(FN, 1e-4, 3e-4 / 1e-4))
+    assert res.t_s[-1] == 3.0
+    assert abs(res.ft_N[-1]) <= 0.2 * FN
