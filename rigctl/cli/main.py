@@ -16,6 +16,8 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_simulate",
     "rigctl.cli.cmd_files",
+    "rigctl.cli.cmd_config",
+    "rigctl.cli.cmd_devices",
     "rigctl.cli.cmd_bench",
 )
 

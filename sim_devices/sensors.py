@@ -1,0 +1,160 @@
+"""Physics of the rig's sensors: the 3-axis force sensor and the two fibre-optic probes.
+
+Both the wire-level simulators and the in-process backend read the rig's true state through these
+models, so the two backends quantise, saturate and add noise identically.
+
+Force sensor (mounting, a choice documented in docs/simulated-rig.md): x along the sliding direction,
+so Fx = Ft; z along the load axis with compression positive, so Fz = +Fn; Fy is the small lateral
+reading a real mounting shows, modelled as a misalignment crosstalk ``crosstalk_y * Ft``. Each axis
+adds Gaussian noise, subtracts its tare offset, and is quantised to ``force_N_per_count`` with int16
+saturation (+-655.34 N at the default 0.02 N/count, as a real ADC range saturates).
+
+Probes (MTI-2100 with RS2032R, seed Section 2.1): range 74 um centred on the zero, resolution
+0.019 um. The reading is the probe's gap change (the model's ideal d1 / d2 plus a mounting offset)
+minus the zero set by ``ZR``, plus Gaussian noise, quantised to the resolution. Beyond +-37 um of the
+zero the probe reports over-range (never a clipped number); its analog output then goes to the
+rail, +-10 V (full-scale counts on the DAQ), which no in-range reading can produce.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+INT16_MIN = -32768
+INT16_MAX = 32767
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ForceSensorSpec:
+    """Scales, noise and mounting of the force sensor and the DAQ's analog front end."""
+
+    force_N_per_count: float = 0.02
+    noise_rms_N: tuple[float, float, float] = (0.05, 0.05, 0.2)
+    crosstalk_y: float = 0.01
+    zero_offset_N: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    volts_per_count: float = 10.0 / 32768.0
+    analog_noise_rms_V: float = 0.0005
+    probe_m_per_volt: float = 7.4e-6
+
+    def __post_init__(self) -> None:
+        if not (self.force_N_per_count > 0 and self.volts_per_count > 0):
+            raise ValueError("DAQ scales must be positive")
+        if self.probe_m_per_volt == 0 or not math.isfinite(self.probe_m_per_volt):
+            raise ValueError("probe_m_per_volt must be finite and non-zero")
+
+
+def to_int16_counts(values: FloatArray, per_count: float) -> NDArray[np.int64]:
+    """Round to counts and saturate at the int16 range (an ADC's full scale)."""
+    return np.clip(np.rint(np.asarray(values) / per_count), INT16_MIN, INT16_MAX).astype(np.int64)
+
+
+class ForceSensor:
+    """Fx, Fy, Fz counts from the true Ft and Fn (module docstring); tare-able, seeded noise."""
+
+    def __init__(self, spec: ForceSensorSpec | None = None, seed: int = 0) -> None:
+        self.spec = spec or ForceSensorSpec()
+        self._rng = np.random.default_rng(seed)
+        self._tare_N = np.zeros(3)
+        self._lock = threading.Lock()
+
+    def forces_N(self, ft_N: FloatArray, fn_N: FloatArray) -> NDArray[np.float64]:
+        """(n, 3) sensor forces [N] before quantisation: mounting, crosstalk, noise, tare."""
+        ft = np.asarray(ft_N, dtype=np.float64)
+        fn = np.asarray(fn_N, dtype=np.float64)
+        s = self.spec
+        f = np.empty((ft.shape[0], 3))
+        f[:, 0] = ft
+        f[:, 1] = s.crosstalk_y * ft
+        f[:, 2] = fn
+        f += np.asarray(s.zero_offset_N)
+        with self._lock:
+            f += self._rng.standard_normal(f.shape) * np.asarray(s.noise_rms_N)
+            f -= self._tare_N
+        return f
+
+    def counts(self, ft_N: FloatArray, fn_N: FloatArray) -> NDArray[np.int64]:
+        """(n, 3) int16-range counts as the DAQ sends them."""
+        return to_int16_counts(self.forces_N(ft_N, fn_N), self.spec.force_N_per_count)
+
+    def tare(self, ft_N: FloatArray, fn_N: FloatArray) -> None:
+        """Zero each axis at the mean of the given recent true forces (noise averages out)."""
+        with self._lock:
+            current = self._tare_N.copy()
+            self._tare_N[:] = 0.0
+        f = self.forces_N(ft_N, fn_N).mean(axis=0) if len(ft_N) else current
+        with self._lock:
+            self._tare_N = f
+
+    @property
+    def tare_N(self) -> tuple[float, float, float]:
+        with self._lock:
+            t = self._tare_N
+            return float(t[0]), float(t[1]), float(t[2])
+
+
+@dataclass(frozen=True)
+class ProbeSpec:
+    """One fibre-optic probe (MTI-2100 + RS2032R, seed Section 2.1)."""
+
+    model: str = "MTI-2100/RS2032R-sim"
+    serial: str = "SIM0001"
+    range_m: float = 74e-6
+    resolution_m: float = 0.019e-6
+    noise_rms_m: float = 0.005e-6
+    mount_offset_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (self.range_m > 0 and self.resolution_m > 0 and self.noise_rms_m >= 0):
+            raise ValueError("probe range and resolution must be positive, noise >= 0")
+
+
+class ProbeHead:
+    """A probe's physical state: where its zero is. Shared by its serial and analog outputs."""
+
+    def __init__(self, spec: ProbeSpec | None = None, seed: int = 0) -> None:
+        self.spec = spec or ProbeSpec()
+        self._zero_m = 0.0
+        self._rng = np.random.default_rng(seed)
+        self._lock = threading.Lock()
+
+    @property
+    def half_range_m(self) -> float:
+        return 0.5 * self.spec.range_m
+
+    @property
+    def zero_m(self) -> float:
+        return self._zero_m
+
+    def zero_at(self, ideal_m: float) -> None:
+        """``ZR``: the current gap becomes the zero."""
+        self._zero_m = float(ideal_m) + self.spec.mount_offset_m
+
+    def readings_m(self, ideal_m: FloatArray) -> FloatArray:
+        """Quantised readings relative to the zero; +inf / -inf where over range."""
+        ideal = np.asarray(ideal_m, dtype=np.float64)
+        with self._lock:
+            noise = self._rng.standard_normal(ideal.shape) * self.spec.noise_rms_m
+        rel = ideal + self.spec.mount_offset_m - self._zero_m + noise
+        res = self.spec.resolution_m
+        q = np.rint(rel / res) * res + 0.0  # + 0.0: no negative zero
+        over = np.abs(rel) > self.half_range_m
+        return np.where(over, np.copysign(np.inf, rel), q)
+
+    def analog_V(self, ideal_m: FloatArray, m_per_volt: float) -> FloatArray:
+        """Analog output [V]; over range it sits at the +-10 V rail."""
+        r = self.readings_m(ideal_m)
+        return np.where(np.isfinite(r), r / m_per_volt, np.copysign(10.0, r))
+
+
+def format_probe_um(value_m: float) -> str:
+    """``+0012.3450`` / ``+OVER`` / ``-OVER``: micrometres, 4 decimals, sign always printed."""
+    if math.isinf(value_m):
+        return "+OVER" if value_m > 0 else "-OVER"
+    return f"{value_m * 1e6:+010.4f}"
