@@ -253,3 +253,16 @@ def test_duration_rounding_below_a_sample_time_still_writes_the_last_sample():
     res = Simulator(build_model("classic")).run(Drive.constant(FN, 1e-4, 3e-4 / 1e-4))
     assert res.t_s[-1] == 3.0
     assert abs(res.ft_N[-1]) <= 0.2 * FN
+
+
+def test_event_trough_is_the_true_minimum_of_the_drive_force():
+    """Against the drive force sampled every 0.24 us through the slips (the extremum of one
+    half-swing lies slightly before the velocity returns to zero, because of the C0 V term)."""
+    rate = 2.0**22
+    res = Simulator(build_model("paper"), rate).run(Drive.constant(FN, 1e-3, 0.2))
+    assert len(res.events) >= 2
+    for e in res.events:
+        m = (res.t_s >= e.t_start_s) & (res.t_s <= e.t_end_s)
+        assert e.trough_N <= res.ft_N[m].min() + 1e-9
+        assert e.trough_N == pytest.approx(res.ft_N[m].min(), abs=1e-4)
+        assert e.peak_N == pytest.approx(res.ft_N[res.t_s <= e.t_start_s][-1], abs=0.05)

@@ -35,9 +35,9 @@ def test_first_slip_time_peak_and_trough_agree(first_cycle):
         assert a.t_end_s == pytest.approx(b.t_end_s, abs=1e-7)
         assert a.peak_N == pytest.approx(b.peak_N, abs=1e-4)
         assert a.slip_m == pytest.approx(b.slip_m, abs=1e-10)
-        # the engine takes the trough over its step ends; the reference over a fine grid of the
-        # slip, which finds the true minimum a few mN lower (the C0 term moves it before V = 0)
-        assert b.trough_N - 1e-4 <= a.trough_N <= b.trough_N + 0.02
+        # the engine finds the exact minimum of the drive force over the slip; the reference takes
+        # it over a fine grid of its solution, which can only over-estimate it, by under 1 mN
+        assert b.trough_N - 1e-3 <= a.trough_N <= b.trough_N + 1e-6
     first = eng.events[0]
     assert first.peak_N == pytest.approx(0.2 * FN, rel=1e-3)  # mu_s,max Fn
 
