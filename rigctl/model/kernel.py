@@ -487,8 +487,12 @@ def _free_step(
     fs[S_X] = position(a, b, c1, c2, l1, l2, h)
     fs[S_V] = velocity(b, c1, c2, l1, l2, h)
     fs[S_T] = fs[S_T] + h
-    fs[S_THETA] = fs[S_THETA] + h
-    k = element_stiffness(cp, ist[I_STAGE], fn0, g.shape[0])
+    # a new contact is a fresh interface: the initial stage starts again (paper Sec. 2.2: each
+    # TLRE repetition, after unloading, shows the initial stage and its mu_s,max threshold again)
+    # and the contact's age (rate-and-state theta) restarts at zero
+    ist[I_STAGE] = 0
+    fs[S_THETA] = 0.0
+    k = element_stiffness(cp, 0, fn0, g.shape[0])
     for i in range(g.shape[0]):
         mode[i] = 0
         g[i] = -k * fs[S_X]

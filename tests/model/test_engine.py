@@ -266,3 +266,16 @@ def test_event_trough_is_the_true_minimum_of_the_drive_force():
         assert e.trough_N <= res.ft_N[m].min() + 1e-9
         assert e.trough_N == pytest.approx(res.ft_N[m].min(), abs=1e-4)
         assert e.peak_N == pytest.approx(res.ft_N[res.t_s <= e.t_start_s][-1], abs=0.05)
+
+
+def test_a_new_contact_starts_a_new_initial_stage():
+    """Unload completely, slide back, settle, reload: the first peak is mu_s,max Fn again
+    (paper Sec. 2.2)."""
+    t = np.array([0.0, 20.0, 20.5, 25.0, 26.0, 26.5, 47.0])
+    x = np.array([0.0, 2e-4, 2e-4, 0.0, 0.0, 0.0, 2.05e-4])
+    fn = np.array([FN, FN, 0.0, 0.0, 0.0, FN, FN])
+    res = Simulator(build_model("paper")).run(Drive(t, x, fn))
+    initial = [e for e in res.events if e.stage == "initial"]
+    assert len(initial) == 2
+    assert initial[1].t_start_s > 26.5
+    assert initial[1].peak_N == pytest.approx(0.2 * FN, rel=0.01)
