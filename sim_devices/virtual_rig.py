@@ -48,14 +48,6 @@ from sim_devices.stage_axis import (
 _log = logging.getLogger(__name__)
 T = TypeVar("T")
 
-ENGINE_MIN_FN_N = 0.01
-"""Smallest Fn handed to the engine (half a force count, 0.02 N). With Fn exactly 0 and the stage at
-rest the engine's stepper does not return, and with Fn of a few micronewtons a moving stage makes it
-crawl (many stick/slip switches per sample; reported to the lead). 0.01 N is below one force count
-and its friction (mu * 0.01 N = 2 mN) far below the sensor noise; samples at or below it are stored
-as Fn = 0 (specimens apart)."""
-
-
 class RigFailedError(RuntimeError):
     """The virtual rig stopped because its engine raised; ``__cause__`` holds the error."""
 
@@ -188,7 +180,6 @@ class VirtualRig:
         fn0 = cfg.contact.fn_N(self._nor.position_m(0.0))
         if fn0 > cfg.max_load_N:
             raise ValueError("the normal stage starts beyond the maximum load")
-        fn0 = max(fn0, ENGINE_MIN_FN_N)
         self._stepper = self._sim.stepper(x_stage_m=0.0, fn_N=fn0)
         # The history starts with samples 0 and 1 at rest (the engine needs t_end > t_now).
         first = self._stepper.advance(1.0 / cfg.sample_rate_hz, 0.0, fn0)
@@ -334,7 +325,7 @@ class VirtualRig:
             z1 = self._nor.position_m(t1)
             fn1 = min(cfg.contact.fn_N(z1), cfg.max_load_N)
         x1 = self._tan.position_m(t1) - self.x_ref_m
-        chunk = self._stepper.advance(t1, x1, max(fn1, ENGINE_MIN_FN_N))
+        chunk = self._stepper.advance(t1, x1, fn1)
         self._store(chunk, t0, t1, z0, z1)
 
     def _overload_time(self, t0: float, t1: float) -> float:
@@ -365,7 +356,7 @@ class VirtualRig:
                 "t_s": t,
                 "x_stage_m": chunk.x_stage_m + self.x_ref_m,
                 "z_normal_m": z,
-                "fn_N": np.where(chunk.fn_N <= ENGINE_MIN_FN_N, 0.0, chunk.fn_N),
+                "fn_N": chunk.fn_N,
                 "ft_N": ft,
                 "d1_m": chunk.d1_m,
                 "d2_m": chunk.d2_m,
