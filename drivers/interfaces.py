@@ -475,6 +475,8 @@ class ChannelMap:
     d1_m_per_V: float = 7.4e-6
     d2_channel: int = 1
     d2_m_per_V: float = 7.4e-6
+    probe_rail_V: float = 9.99
+    """A probe's analog output at or beyond this many volts is over range (it sits at the rail)."""
 
     def __post_init__(self) -> None:
         for key in ("ft_axis", "fn_axis"):
@@ -512,6 +514,13 @@ class ChannelMap:
     def d2_m(self, block: DaqBlock) -> FloatArray:
         """Displacement probe 2 [m] from its analog output."""
         return self.d2_m_per_V * block.ain_V[:, self.d2_channel]
+
+    def probe_over_range(self, block: DaqBlock) -> dict[str, np.ndarray]:
+        """Per probe (``d1_m``, ``d2_m``), the samples whose analog output sits at the rail."""
+        return {
+            "d1_m": np.abs(block.ain_V[:, self.d1_channel]) >= self.probe_rail_V,
+            "d2_m": np.abs(block.ain_V[:, self.d2_channel]) >= self.probe_rail_V,
+        }
 
 
 class Daq(Device):

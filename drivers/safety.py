@@ -186,6 +186,7 @@ class ForceGuard:
         self._also_trigger = also_trigger
         self._lock = threading.Lock()
         self._trip: ForceLimitError | None = None
+        self._release_ceiling_N: float | None = None
         stage.add_interlock(self)
 
     @property
@@ -212,8 +213,12 @@ class ForceGuard:
         values = np.asarray(fn_N, dtype=np.float64).ravel()
         if values.size == 0:
             return None
-        bad = ~np.isfinite(values) | (np.abs(values) > self._limit_N)
+        ceiling = self._release_ceiling_N
+        bad = ~np.isfinite(values) | (np.abs(values) > (self._limit_N if ceiling is None else ceiling))
         if not bad.any():
+            if ceiling is not None and bool(np.all(np.abs(values) <= self._limit_N)):
+                with self._lock:
+                    self._release_ceiling_N = None  # released: back to the normal limit
             return None
         worst = float(values[int(np.argmax(bad))])
         with self._lock:
@@ -233,6 +238,28 @@ class ForceGuard:
         """Accept commands again (the next reading above the limit trips again)."""
         with self._lock:
             self._trip = None
+            self._release_ceiling_N = None
+
+    def allow_release(self, margin: float = 0.05) -> None:
+        """Accept commands again for a load release after a trip.
+
+        The force is still above the limit when the release starts, so until a block of readings is
+        back within the limit the guard trips only above ``(1 + margin)`` times the larger of the limit
+        and the force that tripped it: a release that does not lower the force (wrong direction, a
+        jammed stage) is still stopped, a working one is not interrupted by its own starting force.
+        """
+        if not (math.isfinite(margin) and 0.0 <= margin <= 0.5):
+            raise ValueError(f"release margin must be within 0..0.5: {margin!r}")
+        with self._lock:
+            trip = self._trip
+            start_N = abs(trip.force_N) if trip is not None and math.isfinite(trip.force_N) else 0.0
+            self._release_ceiling_N = max(self._limit_N, start_N) * (1.0 + margin)
+            self._trip = None
+
+    @property
+    def releasing(self) -> bool:
+        """True between :meth:`allow_release` and the first block of readings within the limit."""
+        return self._release_ceiling_N is not None
 
     def check_command(self, stage: LoadingStage, command: str) -> None:
         """Interlock hook: refuse motion commands of the guarded stage while tripped."""

@@ -60,6 +60,8 @@ describe(
     d1_m_per_V=Setting("D1 analog scale (74 um over 10 V).", unit="m/V"),
     d2_channel=Setting("Analog input (ain0..ain2) of displacement probe D2.", ge=0, le=2),
     d2_m_per_V=Setting("D2 analog scale (74 um over 10 V).", unit="m/V"),
+    probe_rail_V=Setting("A probe output at or beyond this is over range (at the rail): counted "
+                         "and marked in the run, never taken as a displacement.", unit="V", gt=0),
 )
 
 

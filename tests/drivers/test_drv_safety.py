@@ -283,3 +283,18 @@ def test_daq_block_times_from_counter_and_shape_checks() -> None:
             dropped_total=0,
             rate_hz=1024.0,
         )
+
+
+def test_force_guard_allows_a_release_but_stops_a_release_that_raises_the_force(stage: LoggingStage) -> None:
+    guard = ForceGuard(stage, limit_N=300.0)
+    guard.feed([305.0])
+    assert guard.tripped
+    guard.allow_release()
+    assert guard.releasing and not guard.tripped
+    assert guard.feed([310.0, 306.0]) is None  # above the limit, below 1.05 x 305 N: releasing
+    assert guard.feed([299.0, 250.0]) is None  # back within the limit: release mode ends
+    assert not guard.releasing
+    assert guard.feed([301.0]) is not None  # the normal limit applies again
+    guard.allow_release()
+    assert guard.feed([330.0]) is not None  # the force rose during the release: stopped
+    assert guard.tripped
