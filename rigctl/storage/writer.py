@@ -10,6 +10,13 @@ One thread writes. The acquisition layer's writer thread feeds it from its queue
 :meth:`RunWriter.maybe_flush` when a queue is idle, so flushes happen on time even without data;
 a second thread calling an append method is refused (:class:`RuntimeError`).
 
+While recording, the free space of the file system is checked every ``DISK_CHECK_INTERVAL_S``; when
+it falls below half of ``min_free_bytes`` the writer raises :class:`StorageError` ("disk nearly full")
+while there is still room to close the file cleanly with its status. A write that fails anyway
+(a full disk, an I/O error) leaves the HDF5 library holding a half-closed file; such files are kept
+in :data:`BROKEN_FILES` (never garbage-collected: HDF5 may crash on them), and the command line
+leaves the process without the library's teardown (see :func:`rigctl.cli.main.main`).
+
 Used as a context manager, the run's final status is recorded whatever happens: ``completed`` on a
 clean exit, ``aborted`` on ``KeyboardInterrupt``, ``failed`` with the exception text otherwise; the
 samples already appended are written before the file is closed.
@@ -18,6 +25,7 @@ samples already appended are written before the file is closed.
 from __future__ import annotations
 
 import json
+import shutil
 import threading
 import time
 from collections.abc import Mapping
@@ -38,6 +46,13 @@ DEFAULT_FLUSH_INTERVAL_S = 0.25
 MAX_FLUSH_INTERVAL_S = 0.5
 _COALESCE_SAMPLES = 1024
 """Pending samples that trigger a write even before the flush interval is up."""
+
+
+DISK_CHECK_INTERVAL_S = 2.0
+"""How often (host seconds) the free space is checked while recording."""
+
+BROKEN_FILES: list[object] = []
+"""h5py files whose close failed (kept alive on purpose: freeing them can crash HDF5)."""
 
 
 class RunWriter:
@@ -106,6 +121,8 @@ class RunWriter:
         self._last_frame_t_s = -np.inf
         self._n_events = 0
         self._last_flush = time.monotonic()
+        self._min_free_bytes = int(min_free_bytes)
+        self._last_disk_check = time.monotonic()
         self._owner: int | None = None
         self._closed = False
         self.status: str = layout.STATUS_RUNNING
@@ -196,10 +213,29 @@ class RunWriter:
 
     def maybe_flush(self) -> bool:
         """Flush if ``flush_interval_s`` has passed since the last flush; True if it flushed."""
-        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+        now = time.monotonic()
+        if self._min_free_bytes > 0 and now - self._last_disk_check >= DISK_CHECK_INTERVAL_S:
+            self._last_disk_check = now
+            self.check_free_space()
+        if now - self._last_flush >= self.flush_interval_s:
             self.flush()
             return True
         return False
+
+    def check_free_space(self) -> None:
+        """Raise :class:`StorageError` when less than half of ``min_free_bytes`` is left.
+
+        Stopping there, rather than at the first failed write, leaves room to close the file with
+        its status and everything recorded so far.
+        """
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        free = shutil.disk_usage(folder).free
+        if free < self._min_free_bytes // 2:
+            raise StorageError(
+                f"disk nearly full: {free / 2**20:.1f} MiB free (reserve "
+                f"{self._min_free_bytes / 2**20:.0f} MiB); recording stopped to keep the file intact",
+                path=self.path,
+            )
 
     def flush(self) -> None:
         """Write pending samples and make everything written so far visible to readers on disk."""
@@ -233,7 +269,11 @@ class RunWriter:
                 self.status = status
             finally:
                 self._closed = True
-                self._file.close()
+                try:
+                    self._file.close()
+                except BaseException:
+                    BROKEN_FILES.append(self._file)  # freeing it later can crash the HDF5 library
+                    raise
 
     def __enter__(self) -> RunWriter:
         return self

@@ -339,3 +339,30 @@ def test_a_failed_write_keeps_the_samples_for_the_next_attempt(
     with RunReader(path) as r:
         np.testing.assert_array_equal(r.read_daq()["fz_N"], block(0, 128)["fz_N"])
         assert r.blocks()["first_sample"].tolist() == [0, 100]
+
+
+def test_a_filling_disk_stops_the_recording_while_the_file_can_still_be_closed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    clock = [1000.0]
+    free = [10 * 2**30]
+    monkeypatch.setattr(writer_module.time, "monotonic", lambda: clock[0])
+    real_usage = writer_module.shutil.disk_usage
+    monkeypatch.setattr(
+        writer_module.shutil, "disk_usage",
+        lambda p: real_usage(p)._replace(free=free[0]),
+    )
+    path = tmp_path / "run.h5"
+    w = RunWriter(path, DESC, min_free_bytes=64 * 2**20)
+    w.append_daq(block(0, 64))
+    clock[0] += writer_module.DISK_CHECK_INTERVAL_S
+    assert w.maybe_flush()  # plenty of room
+    free[0] = 20 * 2**20  # 20 MiB left: below half the 64 MiB reserve
+    w.append_daq(block(64, 64))
+    clock[0] += writer_module.DISK_CHECK_INTERVAL_S
+    with pytest.raises(StorageError, match=r"disk nearly full: 20\.0 MiB free"):
+        w.maybe_flush()
+    w.close("failed", "disk nearly full")
+    with RunReader(path) as r:
+        assert r.status == "failed"
+        assert r.n_samples == 128  # nothing appended was lost
