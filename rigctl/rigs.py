@@ -1,0 +1,186 @@
+"""Open the rig for a backend: the simulated rig (in process or behind the wires) or the hardware.
+
+``open_rig`` yields an :class:`OpenRig` with the devices behind the drivers' interfaces, the limits of
+the configuration, and (simulated backends) the running virtual rig.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from experiments.context import AxisLimits, RigLimits
+from rigctl.acquisition import RigDevices
+from rigctl.config import RigConfig
+from rigctl.model import ModelSpec
+
+MAX_SPEED = math.inf
+"""``--speed max``: a simulated rig paced by the acquisition (:class:`Pacer`), as fast as the CPU allows
+while the recorded data never falls more than ``Pacer.max_lag_s`` of rig time behind."""
+
+
+class Pacer:
+    """Advances a manual-clock virtual rig in small steps, as fast as the acquisition keeps up.
+
+    A free-running accelerated clock can outrun the recorder: the data read would then lag the rig,
+    stage positions polled "now" would not match the samples they are stored with, and waits measured
+    on the data would jump. Pacing keeps the rig at most ``max_lag_s`` of rig time ahead of the newest
+    recorded sample, so every reading is current to within that.
+    """
+
+    def __init__(self, rig: Any, step_s: float = 1.0 / 16.0, max_lag_s: float = 0.25) -> None:
+        self.rig = rig
+        self.step_s = step_s
+        self.max_lag_s = max_lag_s
+        self._data_time: Callable[[], float] | None = None
+        self._offset: float | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sim-pacer", daemon=True)
+        self.error: BaseException | None = None
+
+    def follow(self, data_time: Callable[[], float]) -> None:
+        """Pace against ``data_time()`` (device time of the newest recorded sample, NaN before)."""
+        self._offset = None
+        self._data_time = data_time
+
+    def start(self) -> Pacer:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+
+    def _lag_s(self) -> float:
+        """Rig time minus the newest recorded sample, on the rig's time axis.
+
+        The data's time axis starts when the DAQ stream started; the offset between the two axes is
+        the minimum of (rig time - data time) seen so far: every observation is the offset plus a
+        lag >= 0, so the minimum only ever over-estimates how far the data may fall behind by the
+        smallest lag seen, and pacing can never wait for data the rig has not produced yet.
+        """
+        if self._data_time is None:
+            return 0.0
+        t_data = self._data_time()
+        if t_data != t_data:  # NaN: no data yet, let the rig run to produce some
+            return 0.0
+        observed = self.rig.t_s - t_data
+        self._offset = observed if self._offset is None else min(self._offset, observed)
+        return observed - self._offset
+
+    def _run(self) -> None:
+        try:
+            waiting_since: float | None = None
+            while not self._stop.is_set():
+                if self._data_time is None:
+                    self._stop.wait(0.001)
+                    continue
+                if self._lag_s() > self.max_lag_s:
+                    now = time.monotonic()
+                    waiting_since = waiting_since if waiting_since is not None else now
+                    if now - waiting_since < 0.05:  # the recorder is catching up
+                        self._stop.wait(0.001)
+                        continue
+                waiting_since = None  # caught up, or stalled for 50 ms: move on regardless
+                self.rig.advance_to(self.rig.t_s + self.step_s)
+        except BaseException as exc:  # surfaces as silent devices, and here for the record
+            self.error = exc
+
+
+@dataclass
+class OpenRig:
+    devices: RigDevices
+    limits: RigLimits
+    config: RigConfig
+    speed: float
+    sim: Any = None
+    """The SimRig of a simulated backend (its virtual rig, faults), None for the hardware."""
+    pacer: Pacer | None = None
+    """For ``--speed max``: call ``pacer.follow(lambda: acq.t_s)`` once the acquisition exists."""
+
+
+def rig_limits(config: RigConfig) -> RigLimits:
+    t = config.tangential_stage.limits
+    n = config.normal_stage.limits
+    return RigLimits(
+        tangential=AxisLimits(t.min_position_m, t.max_position_m, t.max_velocity_m_s),
+        normal=AxisLimits(n.min_position_m, n.max_position_m, n.max_velocity_m_s),
+        max_force_N=n.max_force_N,
+    )
+
+
+def parse_speed(text: str) -> float:
+    """'1', '20', 'max' -> a clock factor for a simulated rig."""
+    if text == "max":
+        return MAX_SPEED
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"--speed must be a number or 'max', got {text!r}") from None
+    if not (v > 0 and v < float("inf")):
+        raise ValueError(f"--speed must be positive and finite, got {text!r}")
+    return v
+
+
+@contextlib.contextmanager
+def open_rig(
+    backend: str, config: RigConfig, speed: float = 1.0, model: ModelSpec | None = None
+) -> Iterator[OpenRig]:
+    """Open the devices of ``backend``; a simulated rig runs ``model`` (default: the config's)."""
+    if backend in ("sim", "sim-wire"):
+        from sim_devices.backends import build_sim_rig
+
+        # an accelerated rig renders at most about as many camera frames per host second as in
+        # real time: the camera's frame rate is lowered by the speed factor (recorded in the run)
+        cam_cfg = config.camera
+        factor = 100.0 if math.isinf(speed) else speed
+        fps = cam_cfg.frame_rate_hz / factor if factor > 1 else cam_cfg.frame_rate_hz
+        cfg = dataclasses.replace(config, camera=dataclasses.replace(cam_cfg, frame_rate_hz=fps))
+        paced = math.isinf(speed)
+        sim = build_sim_rig(backend, config=cfg, speed=None if paced else speed, model=model)
+        pacer = Pacer(sim.rig).start() if paced else None
+        try:
+            yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(cfg), cfg, speed, sim,
+                          pacer)
+        finally:
+            if pacer is not None:
+                pacer.stop()
+            sim.close()
+        return
+    if backend != "real":
+        raise ValueError(f"unknown backend {backend!r} (sim, sim-wire, real)")
+    if speed != 1.0:
+        raise ValueError("the real rig runs in real time only (--speed 1)")
+    from drivers.can_daq import CanDaq
+    from drivers.modbus_stage import ModbusStage
+    from drivers.opencv_camera import OpenCvCamera
+    from drivers.safety import EmergencyStop
+    from drivers.serial_probe import SerialProbe
+    from rigctl.config import adapters
+
+    estop = EmergencyStop()
+    opened: list[Any] = []
+    try:
+        tang = ModbusStage(adapters.stage_config(config, "tangential_stage"), emergency_stop=estop)
+        opened.append(tang)
+        normal = ModbusStage(adapters.stage_config(config, "normal_stage"), emergency_stop=estop)
+        opened.append(normal)
+        daq = CanDaq(adapters.daq_config(config))
+        opened.append(daq)
+        d1 = SerialProbe(adapters.probe_config(config, "d1"))
+        opened.append(d1)
+        d2 = SerialProbe(adapters.probe_config(config, "d2"))
+        opened.append(d2)
+        cam = OpenCvCamera(adapters.camera_config(config))
+        opened.append(cam)
+        yield OpenRig(RigDevices(tang, normal, daq, cam, d1, d2), rig_limits(config), config, 1.0)
+    finally:
+        for dev in reversed(opened):
+            with contextlib.suppress(Exception):
+                dev.close()
