@@ -1,0 +1,73 @@
+"""Protocol parameters: typed, with units, defaults from the paper and `--param k=v` parsing."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from experiments.errors import PlanError
+
+
+@dataclass(frozen=True)
+class ParamDef:
+    name: str
+    default: float | int | tuple[float, ...]
+    unit: str
+    doc: str
+
+    @property
+    def is_list(self) -> bool:
+        return isinstance(self.default, tuple)
+
+    def parse(self, text: str) -> float | int | tuple[float, ...]:
+        """A value from the command line; lists are comma-separated."""
+        items = [t.strip() for t in text.split(",") if t.strip()]
+        try:
+            values = [float(t) for t in items]
+        except ValueError:
+            raise PlanError(f"parameter '{self.name}': not a number in {text!r}") from None
+        if not values:
+            raise PlanError(f"parameter '{self.name}': no value given")
+        for v in values:
+            if not math.isfinite(v):
+                raise PlanError(f"parameter '{self.name}': must be finite, got {text!r}")
+        if self.is_list:
+            return tuple(values)
+        if len(values) != 1:
+            raise PlanError(f"parameter '{self.name}' takes one value, got {text!r}")
+        if isinstance(self.default, int):
+            if values[0] != int(values[0]) or values[0] < 1:
+                raise PlanError(f"parameter '{self.name}' must be a whole number >= 1")
+            return int(values[0])
+        return values[0]
+
+
+def resolve(
+    defs: tuple[ParamDef, ...], given: Mapping[str, Any], protocol: str
+) -> dict[str, Any]:
+    """Defaults overridden by ``given`` (values or command-line strings); unknown names refused."""
+    by_name = {d.name: d for d in defs}
+    out: dict[str, Any] = {d.name: d.default for d in defs}
+    for key, value in given.items():
+        if key not in by_name:
+            raise PlanError(
+                f"protocol '{protocol}' has no parameter '{key}' (known: {', '.join(by_name)})"
+            )
+        d = by_name[key]
+        out[key] = d.parse(value) if isinstance(value, str) else (
+            tuple(float(v) for v in value) if d.is_list else value
+        )
+    return out
+
+
+def parse_assignments(items: list[str]) -> dict[str, str]:
+    """['fn_N=300', 'holds_s=1,10,100'] -> {'fn_N': '300', 'holds_s': '1,10,100'}."""
+    out: dict[str, str] = {}
+    for item in items:
+        if "=" not in item:
+            raise PlanError(f"--param '{item}': expected NAME=VALUE")
+        k, v = item.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out

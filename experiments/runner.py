@@ -1,0 +1,287 @@
+"""Run a protocol: dry run first, then record while the steps run; always end in a safe state.
+
+* **Dry run** (:func:`dry_run`): every step is planned against the rig's limits (force <= the normal
+  stage's limit, strokes, velocities) from the stages' current positions, and the duration is
+  estimated; any violation raises :class:`~experiments.errors.PlanError` naming the step and the
+  limit, before anything moves or any file is created.
+* **Run** (:class:`Runner`): the run file is created (its folder, permissions and free space are
+  checked first), the acquisition starts, the steps run in order with a marker per step in the run's
+  event table and progress with ETA on the terminal. Pause/resume/abort come through
+  :class:`~experiments.context.Controls` from any thread or signal.
+* **Safe state** on abort, error or Ctrl-C (:func:`safe_state`): the tangential stage stops, the normal
+  load is released (the normal stage goes back to where it was before contact; after a force-limit
+  trip that retraction is the one motion allowed). The run file is closed with status ``aborted`` or
+  ``failed`` and the error text; everything recorded stays.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from drivers.safety import ForceGuard
+from experiments.context import Controls, RigLimits, RunContext
+from experiments.errors import ProtocolAborted
+from experiments.params import resolve
+from experiments.protocols import PROTOCOLS, Protocol
+from experiments.steps import PlanState, Step
+from rigctl.acquisition import Acquisition, AcquisitionStats, RigDevices
+from rigctl.storage import RunWriter
+from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
+
+_log = logging.getLogger(__name__)
+
+SAFE_RETRACT_VELOCITY_M_S = 1e-3
+
+
+@dataclass(frozen=True)
+class PlannedStep:
+    index: int
+    description: str
+    estimate_s: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    protocol: str
+    parameters: dict[str, Any]
+    steps: tuple[PlannedStep, ...]
+
+    @property
+    def duration_s(self) -> float:
+        return sum(s.estimate_s for s in self.steps)
+
+    def summary(self) -> str:
+        lines = [f"protocol {self.protocol}: {len(self.steps)} steps, estimated "
+                 f"{self.duration_s:.0f} s of rig time"]
+        lines += [f"  {s.index:3d}. {s.description:<58} ~{s.estimate_s:8.1f} s" for s in self.steps]
+        return "\n".join(lines)
+
+
+def get_protocol(name: str) -> Protocol:
+    try:
+        return PROTOCOLS[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown protocol '{name}' (known: {', '.join(PROTOCOLS)})"
+        ) from None
+
+
+def build_steps(protocol: Protocol, given: dict[str, Any]) -> tuple[dict[str, Any], list[Step]]:
+    params = resolve(protocol.params, given, protocol.name)
+    return params, protocol.build(params)
+
+
+def dry_run(
+    protocol: Protocol, given: dict[str, Any], limits: RigLimits, x_start_m: float
+) -> tuple[Plan, list[Step]]:
+    """Plan every step against the limits from the tangential stage at ``x_start_m``."""
+    params, steps = build_steps(protocol, given)
+    state = PlanState(x_m=x_start_m, x_start_m=x_start_m)
+    planned = []
+    for i, step in enumerate(steps, 1):
+        est = step.plan(state, limits)
+        planned.append(PlannedStep(i, step.describe(), est))
+    return Plan(protocol.name, params, tuple(planned)), steps
+
+
+def safe_state(ctx: RunContext, reason: str) -> list[str]:
+    """Stop the tangential stage and release the normal load; return what could not be done."""
+    problems: list[str] = []
+    try:
+        ctx.tangential.stop()
+    except Exception as exc:
+        problems.append(f"tangential stop: {exc}")
+        try:
+            ctx.tangential.emergency_stop()
+        except Exception as exc2:
+            problems.append(f"tangential emergency stop: {exc2}")
+    normal = ctx.normal
+    try:
+        if ctx.force_guard is not None and ctx.force_guard.tripped:
+            ctx.force_guard.allow_release()  # the retraction below lowers the force: allowed
+        status = normal.status()
+        if status.fault:
+            normal.reset_alarm()
+        if not status.enabled:
+            normal.enable()
+        z = normal.position_m()
+        target = ctx.z_retract_m if ctx.z_retract_m is not None else z - 200e-6
+        target = max(min(target, z), ctx.limits.normal.min_position_m)
+        normal.move_absolute(target, SAFE_RETRACT_VELOCITY_M_S)
+    except Exception as exc:
+        problems.append(f"normal load release: {exc}")
+        try:
+            normal.emergency_stop()
+        except Exception as exc2:
+            problems.append(f"normal emergency stop: {exc2}")
+    with contextlib.suppress(Exception):  # the marker is a courtesy; the state above matters
+        ctx.acq.mark("safe_state", reason[:900])
+    return problems
+
+
+@dataclass
+class RunOutcome:
+    status: str
+    error: str | None
+    path: Path | None
+    plan: Plan
+    stats: AcquisitionStats | None = None
+    wall_s: float = 0.0
+    problems: list[str] = field(default_factory=list)
+
+
+ProgressFn = Callable[[int, int, str, float, float], None]
+"""progress(step_index, n_steps, description, elapsed_device_s, eta_device_s)"""
+
+
+def terminal_progress(speed: float) -> ProgressFn:
+    """A one-line progress display on stderr with the ETA in rig time and wall time."""
+    last = [0.0]
+
+    def show(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
+        now = time.monotonic()
+        if now - last[0] < 0.5 and i <= n:
+            return
+        last[0] = now
+        wall = eta / speed if speed > 0 else float("nan")
+        print(f"\r[{i}/{n}] {desc[:48]:<48} t={elapsed:7.1f} s  ETA {eta:7.0f} s "
+              f"(~{wall:.0f} s wall)", end="", file=sys.stderr, flush=True)
+
+    return show
+
+
+class Runner:
+    """One run of a protocol on a set of devices."""
+
+    def __init__(
+        self,
+        protocol: Protocol,
+        params: dict[str, Any],
+        devices: RigDevices,
+        limits: RigLimits,
+        *,
+        out: Path | None,
+        daq_layout: DaqLayout | None = None,
+        camera_layout: CameraLayout | None = None,
+        description: RunDescription | None = None,
+        controls: Controls | None = None,
+        force_limit_N: float | None = None,
+        progress: ProgressFn | None = None,
+        flush_interval_s: float = 0.25,
+        overwrite: bool = False,
+        on_acquisition: Callable[[Acquisition], None] | None = None,
+    ) -> None:
+        self.protocol = protocol
+        self.params = params
+        self.devices = devices
+        self.limits = limits
+        self.out = out
+        self.daq_layout = daq_layout or DaqLayout(sample_rate_hz=devices.daq.rate_hz)
+        self.camera_layout = camera_layout
+        self.description = description
+        self.controls = controls or Controls()
+        self.force_limit_N = force_limit_N if force_limit_N is not None else limits.max_force_N
+        self.progress = progress
+        self.flush_interval_s = flush_interval_s
+        self.overwrite = overwrite
+        self.on_acquisition = on_acquisition
+        self.ctx: RunContext | None = None
+
+    def plan(self) -> tuple[Plan, list[Step]]:
+        x0 = self.devices.tangential_stage.position_m()
+        return dry_run(self.protocol, self.params, self.limits, x0)
+
+    def run(self) -> RunOutcome:
+        """Dry run, then the run itself. Raises only for a plan or file problem (before motion)."""
+        plan, steps = self.plan()
+        writer = None
+        if self.out is not None:
+            desc = self.description or RunDescription(protocol=self.protocol.name)
+            desc = RunDescription(
+                protocol=self.protocol.name, parameters=_jsonable(plan.parameters),
+                operator=desc.operator, notes=desc.notes, config_toml=desc.config_toml,
+                calibration=desc.calibration, metadata=desc.metadata,
+            )
+            writer = RunWriter(
+                self.out, desc, self.daq_layout, self.camera_layout,
+                flush_interval_s=self.flush_interval_s, expected_duration_s=plan.duration_s,
+                overwrite=self.overwrite,
+            )
+        guard = ForceGuard(self.devices.normal_stage, self.force_limit_N)
+        acq = Acquisition(
+            self.devices, writer, record_camera=self.camera_layout is not None, force_guard=guard
+        )
+        ctx = RunContext(self.devices, acq, self.limits, self.controls, guard)
+        self.ctx = ctx
+        t_wall = time.monotonic()
+        status, error = "completed", None
+        problems: list[str] = []
+        stats: AcquisitionStats | None = None
+        try:
+            if self.on_acquisition is not None:
+                self.on_acquisition(acq)
+            acq.start()
+            ctx.x_start_m = self.devices.tangential_stage.position_m()
+            for stage in (self.devices.tangential_stage, self.devices.normal_stage):
+                if not stage.status().enabled:
+                    stage.enable()
+            t0 = ctx.now_s()
+            acq.mark("start", f"protocol {plan.protocol}")
+            remaining = plan.duration_s
+            for planned, step in zip(plan.steps, steps, strict=True):
+                ctx.current_step = f"step {planned.index} ({planned.description})"
+                acq.mark(f"step {planned.index}", planned.description)
+                if self.progress:
+                    self.progress(planned.index, len(steps), planned.description,
+                                  ctx.acq.t_s - t0, remaining)
+                step.run(ctx)
+                remaining -= planned.estimate_s
+            acq.mark("end", "protocol completed")
+        except ProtocolAborted as exc:
+            status, error = "aborted", str(exc) or "aborted"
+        except BaseException as exc:
+            status, error = "failed", f"{type(exc).__name__}: {exc}"
+            if isinstance(exc, KeyboardInterrupt):
+                status, error = "aborted", "interrupted (Ctrl-C)"
+        finally:
+            if status != "completed":
+                problems = safe_state(ctx, error or status)
+                if problems:
+                    error = f"{error}; safe state incomplete: {'; '.join(problems)}"
+                self._wait_released(ctx)
+            stats = acq.stop(status, error)
+            guard_detach(self.devices.normal_stage, guard)
+        return RunOutcome(status, error, self.out, plan, stats, time.monotonic() - t_wall, problems)
+
+    def _wait_released(self, ctx: RunContext, host_timeout_s: float = 5.0) -> None:
+        """Give the retraction a few seconds to finish (the acquisition keeps recording it)."""
+        deadline = time.monotonic() + host_timeout_s
+        while time.monotonic() < deadline:
+            try:
+                if not ctx.normal.status().moving:
+                    return
+            except Exception:
+                return
+            time.sleep(0.02)
+
+
+def guard_detach(stage: Any, guard: ForceGuard) -> None:
+    with contextlib.suppress(Exception):  # the stage may be closed already
+        stage.remove_interlock(guard)
+
+
+def _jsonable(params: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in params.items():
+        out[k] = list(v) if isinstance(v, tuple) else v
+        if isinstance(v, float) and not math.isfinite(v):
+            out[k] = str(v)
+    return out

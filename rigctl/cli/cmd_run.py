@@ -1,0 +1,154 @@
+"""`rigctl run PROTOCOL`: run an experiment protocol headless and record it to a run file."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING
+
+from rigctl.cli.main import UsageError
+
+if TYPE_CHECKING:
+    from rigctl.acquisition import Acquisition
+    from rigctl.rigs import Pacer
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from experiments.protocols import PROTOCOLS
+
+    p = sub.add_parser(
+        "run", help="run an experiment protocol (nlre, tlre, force_sweep, velocity_steps, "
+        "slide_hold_slide)",
+        description="Protocols: " + "; ".join(f"{k}: {v.summary}" for k, v in PROTOCOLS.items()),
+    )
+    p.add_argument("protocol", help="protocol name")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="protocol parameter (lists comma-separated); --list-params shows them")
+    p.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"],
+                   help="devices (default: the configuration's rig.backend)")
+    p.add_argument("--config", default=None, help="rig configuration (TOML)")
+    p.add_argument("--speed", default="1", help="simulated rig clock: 1, N (faster) or max")
+    p.add_argument("--out", type=Path, default=None, help="run file (default: storage folder)")
+    p.add_argument("--dry-run", action="store_true", help="check limits, estimate, move nothing")
+    p.add_argument("--list-params", action="store_true", help="list the protocol's parameters")
+    p.add_argument("--operator", default=None)
+    p.add_argument("--notes", default="")
+    p.add_argument("--no-camera", action="store_true", help="do not record camera frames")
+    p.add_argument("--force", action="store_true", help="overwrite an existing run file")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from experiments.errors import PlanError
+    from experiments.params import parse_assignments
+    from experiments.runner import Runner, get_protocol, terminal_progress
+    from rigctl.config import adapters
+    from rigctl.config.loader import load_effective_config, to_toml
+    from rigctl.rigs import open_rig, parse_speed
+    from rigctl.storage.layout import RunDescription
+
+    try:
+        protocol = get_protocol(args.protocol)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if args.list_params:
+        for d in protocol.params:
+            print(f"{d.name:<20} default {d.default!s:<40} [{d.unit}]  {d.doc}")
+        return 0
+    try:
+        given = parse_assignments(args.param)
+        speed = parse_speed(args.speed)
+    except (PlanError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+    config, source = load_effective_config(args.config)
+    backend = args.backend or config.rig.backend
+    if backend == "real" and source is None:
+        raise UsageError("the real backend needs a rig configuration: --config rig.toml")
+    out = args.out
+    if out is None and not args.dry_run:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out = Path(config.storage.directory) / f"{protocol.name}_{stamp}.h5"
+    with open_rig(backend, config, speed) as rig:
+        camera = None if args.no_camera else adapters.camera_layout(rig.config)
+        desc = RunDescription(
+            protocol=protocol.name,
+            operator=args.operator if args.operator is not None else config.rig.operator,
+            notes=args.notes, config_toml=to_toml(rig.config),
+            metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name},
+        )
+        runner = Runner(
+            protocol, given, rig.devices, rig.limits, out=out,
+            daq_layout=adapters.daq_layout(rig.config), camera_layout=camera, description=desc,
+            force_limit_N=adapters.force_limit_N(rig.config),
+            progress=terminal_progress(speed if speed != float("inf") else 100.0)
+            if sys.stderr.isatty() else None,
+            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=args.force,
+            on_acquisition=_pacing(rig.pacer),
+        )
+        try:
+            plan, _ = runner.plan()
+        except PlanError as exc:
+            raise UsageError(f"dry run refused: {exc}") from None
+        print(plan.summary())
+        if speed != float("inf"):
+            print(f"wall time at speed {speed:g}: ~{plan.duration_s / speed:.0f} s")
+        if args.dry_run:
+            print("dry run: nothing moved")
+            return 0
+        _install_signals(runner, rig)
+        outcome = runner.run()
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    st = outcome.stats
+    print(f"{outcome.status}: {outcome.path} ({outcome.wall_s:.1f} s wall)")
+    if st is not None:
+        print(f"samples {st.daq_samples}, dropped {st.daq_dropped + st.queue_dropped_samples}, "
+              f"frames {st.frames} (dropped {st.frames_dropped + st.queue_dropped_frames}), "
+              f"events {st.events}, writer lag max {st.writer_lag_max_s:.3f} s")
+        rate_hz = rig.config.daq.sample_rate_hz
+        for channel, n in sorted(st.probe_over_range_samples.items()):
+            print(f"warning: {channel} over range for {n} samples ({n / rate_hz:.1f} s): "
+                  "recorded at the rail and marked 'probe_over_range' in the events")
+    if outcome.error:
+        print(f"error: {outcome.error}", file=sys.stderr)
+    return {"completed": 0, "aborted": 130}.get(outcome.status, 1)
+
+
+def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
+    """The simulated rig's clock follows the recorded data (None on real hardware)."""
+    if pacer is None:
+        return None
+    return lambda acq: pacer.follow(lambda: acq.t_s)
+
+
+def _install_signals(runner: object, rig: object) -> None:
+    """Ctrl-C/SIGTERM abort (a second Ctrl-C: emergency stop); SIGUSR1 pause, SIGUSR2 resume."""
+    from experiments.runner import Runner
+
+    assert isinstance(runner, Runner)
+    count = [0]
+
+    def on_int(signum: int, frame: FrameType | None) -> None:
+        count[0] += 1
+        if count[0] == 1:
+            print("\ninterrupted: bringing the rig to a safe state (Ctrl-C again: emergency stop)",
+                  file=sys.stderr)
+            runner.controls.abort("interrupted (Ctrl-C)" if signum == signal.SIGINT
+                                  else f"terminated (signal {signum})")
+        else:
+            for stage in (runner.devices.tangential_stage, runner.devices.normal_stage):
+                with contextlib.suppress(Exception):
+                    stage.emergency_stop()
+            os._exit(130)
+
+    signal.signal(signal.SIGINT, on_int)
+    signal.signal(signal.SIGTERM, on_int)
+    signal.signal(signal.SIGUSR1, lambda s, f: runner.controls.pause())
+    signal.signal(signal.SIGUSR2, lambda s, f: runner.controls.resume())

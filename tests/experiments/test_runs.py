@@ -1,0 +1,159 @@
+"""Protocols run on the simulated rig: results, pause/resume, abort, a dead device, a limit trip.
+
+The rig is paced by the acquisition (``--speed max``), so these run many times faster than real time.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from experiments.context import Controls
+from experiments.runner import Runner, get_protocol
+from rigctl.config import adapters
+from rigctl.config.loader import default_config
+from rigctl.model import build_model
+from rigctl.rigs import open_rig
+from rigctl.storage.reader import read_run
+
+SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
+              "preload_hold_s": "1", "settle_s": "1"}
+
+
+def make_runner(rig, protocol: str, params: dict, out: Path, **kw) -> Runner:
+    return Runner(
+        get_protocol(protocol), params, rig.devices, rig.limits, out=out,
+        daq_layout=adapters.daq_layout(rig.config), camera_layout=None,
+        on_acquisition=lambda acq: rig.pacer.follow(lambda: acq.t_s), **kw,
+    )
+
+
+@pytest.fixture
+def rig():
+    with open_rig("sim", default_config(), speed=math.inf) as r:
+        yield r
+
+
+def status_of(path: Path) -> tuple[str, str, list[str]]:
+    with h5py.File(path, "r", swmr=True) as f:
+        return (f["entry/status"][()].decode(), f["entry/error"][()].decode(),
+                [n.decode() for n in f["entry/events/name"][:]])
+
+
+def test_tlre_records_the_initial_stage_and_returns(rig, tmp_path):
+    out = tmp_path / "tlre.h5"
+    x0 = rig.devices.tangential_stage.position_m()
+    outcome = make_runner(rig, "tlre", SHORT_TLRE, out).run()
+    assert outcome.status == "completed", outcome.error
+    run = read_run(out)
+    # the initial stage reaches mu_s,max Fn (paper preset) at the set normal force
+    assert run.ft_N.max() == pytest.approx(0.2 * 300.0, rel=0.05)
+    sliding = run.x_stage_m > x0 + 5e-6
+    assert np.median(run.fn_N[sliding]) == pytest.approx(300.0, abs=3.5)
+    # the pre-load overshoot happened before the slide
+    assert run.fn_N.max() == pytest.approx(360.0, abs=4.0)
+    assert rig.devices.tangential_stage.position_m() == pytest.approx(x0, abs=1e-6)
+    assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # load released
+    status, _, events = status_of(out)
+    assert status == "completed"
+    assert events[0] == "start" and events[-1] == "end"
+    assert {"preload", "loaded", "released"} <= set(events)
+    assert outcome.stats is not None and outcome.stats.daq_dropped == 0
+
+
+def test_pause_stops_the_slide_and_resume_finishes_it(rig, tmp_path):
+    out = tmp_path / "paused.h5"
+    controls = Controls()
+    runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    deadline = time.monotonic() + 60
+    while stage.position_m() < x0 + 30e-6 and time.monotonic() < deadline:
+        time.sleep(0.005)
+    controls.pause()
+    time.sleep(0.3)
+    held = stage.position_m()
+    t_rig = rig.sim.rig.t_s
+    time.sleep(0.5)
+    assert rig.sim.rig.t_s > t_rig + 1.0  # rig time goes on while paused...
+    assert stage.position_m() == pytest.approx(held, abs=1e-9)  # ...and the slide does not
+    controls.resume()
+    th.join(timeout=120)
+    assert result and result[0].status == "completed", result
+    _, _, events = status_of(out)
+    assert "pause" in events and "resume" in events
+
+
+def test_abort_brings_the_rig_to_a_safe_state(rig, tmp_path):
+    out = tmp_path / "aborted.h5"
+    controls = Controls()
+    runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    while stage.position_m() < x0 + 30e-6:
+        time.sleep(0.005)
+    controls.abort("operator pressed stop")
+    th.join(timeout=60)
+    outcome = result[0]
+    assert outcome.status == "aborted" and "operator pressed stop" in outcome.error
+    assert not stage.status().moving
+    assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # normal load released
+    status, error, events = status_of(out)
+    assert status == "aborted" and "operator pressed stop" in error
+    assert "safe_state" in events
+    assert read_run(out).n_samples > 0
+
+
+def test_a_device_that_stops_answering_fails_the_run_safely(rig, tmp_path):
+    out = tmp_path / "dead.h5"
+    runner = make_runner(rig, "tlre", SHORT_TLRE, out)
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    while stage.position_m() < x0 + 20e-6:
+        time.sleep(0.005)
+    rig.sim.faults["daq"].silent = True
+    t_fault = time.monotonic()
+    th.join(timeout=60)
+    outcome = result[0]
+    assert outcome.status == "failed"
+    assert "daq" in outcome.error and "DeviceTimeout" in outcome.error
+    # safe state reached quickly: the tangential stage stopped, the normal stage retracted
+    assert not stage.status().moving
+    assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)
+    assert time.monotonic() - t_fault < 10.0
+    status, error, _ = status_of(out)
+    assert status == "failed" and "daq" in error
+    assert read_run(out).n_samples > 10_000  # the data before the fault is kept
+
+
+def test_a_force_limit_violated_mid_protocol_fails_and_releases(tmp_path):
+    """Normal coupling (kappa 0.5) raises Fn with Ft: a 315 N limit trips during the slide, though the
+    plan itself (300 N, no pre-load) was within it."""
+    model = build_model("paper", effects=["normal_coupling"],
+                        effect_params={"normal_coupling": {"kappa": 0.5}})
+    out = tmp_path / "limit.h5"
+    with open_rig("sim", default_config(), speed=math.inf, model=model) as rig:
+        params = {**SHORT_TLRE, "preload_factor": "1.0"}
+        outcome = make_runner(rig, "tlre", params, out, force_limit_N=315.0).run()
+        assert outcome.status == "failed"
+        assert "ForceLimitError" in outcome.error and "315" in outcome.error
+        assert not rig.devices.tangential_stage.status().moving
+        assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # retracted after the trip
+    run = read_run(out)
+    assert 312.0 < run.fn_N.max() < 330.0  # tripped at the crossing, not far beyond
+    assert status_of(out)[0] == "failed"
