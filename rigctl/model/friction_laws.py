@@ -76,17 +76,42 @@ def mu_static(cp: np.ndarray, stage: int, fn_N: float, theta_s: float) -> float:
 
 
 @njit(cache=True)
-def mu_kinetic(cp: np.ndarray, fn_N: float, v_abs_m_s: float, theta_s: float) -> float:
-    """Kinetic (slip) friction coefficient at slip speed |V|."""
+def mu_kinetic_base(cp: np.ndarray, fn_N: float, v_abs_m_s: float, theta_s: float) -> float:
+    """Kinetic coefficient without the Stribeck term: mu_k (load, wear) plus rate-and-state."""
     muk = cp[P_MUK] * load_factor(fn_N, cp[P_FNREF_MU], cp[P_ALPHA_K]) + cp[P_DMU_K]
-    vs = cp[P_VS]
-    if vs > 0.0:
-        mus = cp[P_MUS] * load_factor(fn_N, cp[P_FNREF_MU], cp[P_ALPHA_S]) + cp[P_DMU_S]
-        muk += (mus - muk) * math.exp(-((v_abs_m_s / vs) ** cp[P_SD]))
     a = cp[P_RS_A]
     if a != 0.0:
         muk += a * math.log(1.0 + v_abs_m_s / cp[P_RS_VREF])
     return muk + aging_term(cp, theta_s)
+
+
+@njit(cache=True)
+def stribeck_amplitude(cp: np.ndarray, fn_N: float) -> float:
+    """Height of the Stribeck term, mu_s - mu_k of the stable stage at Fn; 0 when stribeck is off."""
+    if cp[P_VS] <= 0.0:
+        return 0.0
+    mus = cp[P_MUS] * load_factor(fn_N, cp[P_FNREF_MU], cp[P_ALPHA_S]) + cp[P_DMU_S]
+    muk = cp[P_MUK] * load_factor(fn_N, cp[P_FNREF_MU], cp[P_ALPHA_K]) + cp[P_DMU_K]
+    return mus - muk
+
+
+@njit(cache=True)
+def stribeck_shape(cp: np.ndarray, v_abs_m_s: float) -> float:
+    """exp(-(|V| / v_s)^d), 1 at V = 0 (call only with v_s > 0)."""
+    return math.exp(-((v_abs_m_s / cp[P_VS]) ** cp[P_SD]))
+
+
+@njit(cache=True)
+def mu_kinetic(cp: np.ndarray, fn_N: float, v_abs_m_s: float, theta_s: float) -> float:
+    """Steady-sliding kinetic (slip) friction coefficient at slip speed |V|.
+
+    During a global slip the kernel caps the Stribeck part by what the elements can carry
+    (docs/model.md, "Re-stick with velocity-dependent friction"); this is the uncapped law.
+    """
+    muk = mu_kinetic_base(cp, fn_N, v_abs_m_s, theta_s)
+    if cp[P_VS] > 0.0:
+        muk += stribeck_amplitude(cp, fn_N) * stribeck_shape(cp, v_abs_m_s)
+    return muk
 
 
 @njit(cache=True)

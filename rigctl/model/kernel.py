@@ -11,6 +11,9 @@ Between events the problem is linear with constant coefficients and is solved ex
 rigorous envelope test to skip intervals that cannot hold one, then located by bisection to round-off.
 When the kinetic friction depends on the slip velocity or state (``stribeck``, ``rate_state``) the
 global slip alone is integrated with classical RK4 at 1/64 of the drive period (convergence tested).
+The Stribeck part of the slip friction rises no faster than elastic loading of the elements allows, and
+the elements re-stick carrying that, never more than their static thresholds (docs/model.md, section 2,
+"Re-stick with velocity-dependent friction").
 """
 
 from __future__ import annotations
@@ -24,8 +27,11 @@ from rigctl.model.fastpath import fast_stick_run
 from rigctl.model.friction_laws import (
     element_stiffness,
     mu_kinetic,
+    mu_kinetic_base,
     mu_static,
     slip_is_nonlinear,
+    stribeck_amplitude,
+    stribeck_shape,
 )
 from rigctl.model.layout import (
     E_FN,
@@ -56,6 +62,7 @@ from rigctl.model.layout import (
     P_RS_B,
     P_RS_DC,
     P_TAU_S,
+    P_VS,
     RET_DONE,
     RET_EVENT_TABLE_FULL,
     RET_SLIP_END,
@@ -65,6 +72,7 @@ from rigctl.model.layout import (
     S_EV_X0,
     S_K_USED,
     S_SLIP_CUM,
+    S_STRIB,
     S_T,
     S_THETA,
     S_V,
@@ -155,6 +163,9 @@ def _start_global_slip(
     fs[S_EV_X0] = fs[S_X]
     fs[S_EV_PEAK] = fd
     fs[S_EV_MIN] = fd
+    fs[S_STRIB] = 0.0
+    if cp[P_VS] > 0.0:
+        fs[S_STRIB] = stribeck_amplitude(cp, fn) * stribeck_shape(cp, abs(fs[S_V]))
     ist[I_GSLIP] = 1
     ist[I_SIGN] = sign
     ist[I_SLIPPED] = 1
@@ -170,20 +181,31 @@ def _end_global_slip(
     ist: np.ndarray,
     g: np.ndarray,
     mode: np.ndarray,
+    pw1: np.ndarray,
     p_uni: np.ndarray,
     ev: np.ndarray,
     xs: float,
     vs: float,
     fn: float,
 ) -> None:
-    """Every element sticks again, keeping the force it carried while sliding."""
+    """Every element sticks again, keeping the force it carried while sliding.
+
+    That force is the kinetic friction at the end of the slip: mu_k (load, wear, rate-and-state at
+    V = 0) plus the Stribeck part the elements could actually take up (fs[S_STRIB], not the
+    steady-sliding value mu_s at V = 0: docs/model.md, "Re-stick with velocity-dependent
+    friction"), and never more than the element's own static threshold (an element of
+    ``presliding`` whose threshold lies below the kinetic force re-sticks at its threshold).
+    """
     sign = ist[I_SIGN]
     n = g.shape[0]
     k = element_stiffness(cp, 1, fn, n)
     fe = fn + cp[P_KAPPA] * cp[P_K0] * (xs - fs[S_X])
-    muk = mu_kinetic(cp, fn, 0.0, fs[S_THETA])
+    muk = mu_kinetic_base(cp, fn, 0.0, fs[S_THETA])
+    if cp[P_VS] > 0.0:
+        muk += min(fs[S_STRIB], stribeck_amplitude(cp, fn))
+    mus = mu_static(cp, 1, fn, fs[S_THETA])
     for i in range(n):
-        f_i = sign * muk * p_uni[i] * fe
+        f_i = sign * min(muk * p_uni[i], mus * pw1[i]) * fe
         g[i] = f_i - k * fs[S_X]
         mode[i] = 0
     fs[S_K_USED] = k
@@ -421,7 +443,7 @@ def _linear_step(
 
     # --- apply the event ---
     if gslip:
-        _end_global_slip(cp, fs, ist, g, mode, p_uni, ev, xs1, vs, fn_e)
+        _end_global_slip(cp, fs, ist, g, mode, pw1, p_uni, ev, xs1, vs, fn_e)
         return tau_e, True
     mus = mu_static(cp, stage, fn_e, th0 + tau_e)
     fe_in = fn_e + kk0 * xs1
@@ -459,6 +481,7 @@ def _free_step(
     ist: np.ndarray,
     g: np.ndarray,
     mode: np.ndarray,
+    pw1: np.ndarray,
     p_uni: np.ndarray,
     ev: np.ndarray,
     xs0: float,
@@ -473,7 +496,7 @@ def _free_step(
     """
     ended = False
     if ist[I_GSLIP] == 1:
-        _end_global_slip(cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0)
+        _end_global_slip(cp, fs, ist, g, mode, pw1, p_uni, ev, xs0, vs, fn0)
         ended = True
     k0 = cp[P_K0]
     c0 = cp[P_C0]
@@ -545,6 +568,14 @@ def _event_at(
 
 
 @njit(cache=True)
+def _stribeck_law(cp: np.ndarray, fn: float, v_abs: float) -> float:
+    """Stribeck part of the steady-sliding kinetic coefficient at |V| (0 when stribeck is off)."""
+    if cp[P_VS] <= 0.0:
+        return 0.0
+    return stribeck_amplitude(cp, fn) * stribeck_shape(cp, v_abs)
+
+
+@njit(cache=True)
 def _slip_rhs(
     cp: np.ndarray,
     sign: int,
@@ -552,23 +583,38 @@ def _slip_rhs(
     v: float,
     th: float,
     y: float,
+    e: float,
     xs: float,
     vs: float,
     fn: float,
-) -> tuple[float, float, float]:
-    """(V', theta', y') during a global slip with velocity/state-dependent kinetic friction."""
+) -> tuple[float, float, float, float]:
+    """(V', theta', y', e') during a global slip with velocity/state-dependent kinetic friction.
+
+    e bounds the Stribeck part of mu the sliding elements can carry: it grows as their springs
+    would load, de/dt = Kt |V| / Fn_eff, and is capped by the Stribeck law
+    (mu_s - mu_k) exp(-(|V|/v_s)^d) at the end of every step (:func:`_cap_stribeck`), so the
+    friction mu_k,base(V, theta) + min(e, law(V)) follows the law where it falls and rises no
+    faster than elastic loading allows (docs/model.md, "Re-stick with velocity-dependent
+    friction").
+    """
     k0 = cp[P_K0]
     fe = fn + cp[P_KAPPA] * k0 * (xs - x)
     fd = _drive_force(cp, xs, vs, x, v)
-    mu = mu_kinetic(cp, fn, abs(v), th)
+    va = abs(v)
+    mu = mu_kinetic_base(cp, fn, va, th)
+    de = 0.0
+    if cp[P_VS] > 0.0:
+        mu += min(e, _stribeck_law(cp, fn, va))
     acc = (fd - cp[P_CINT] * v - sign * mu * fe) / cp[P_M]
+    if cp[P_VS] > 0.0:
+        de = element_stiffness(cp, 1, fn, 1) * va / max(fe, FN_CONTACT_MIN_N)
     dth = 1.0
     if cp[P_RS_A] != 0.0 or cp[P_RS_B] != 0.0:
-        dth = 1.0 - abs(v) * th / cp[P_RS_DC]
+        dth = 1.0 - va * th / cp[P_RS_DC]
     dy = 0.0
     if cp[P_TAU_S] > 0.0:
         dy = (fd - y) / cp[P_TAU_S]
-    return acc, dth, dy
+    return acc, dth, dy, de
 
 
 @njit(cache=True)
@@ -579,31 +625,35 @@ def _rk4(
     v: float,
     th: float,
     y: float,
+    e: float,
     xs0: float,
     vs: float,
     fn0: float,
     fn1: float,
     t0: float,
     h: float,
-) -> tuple[float, float, float, float]:
-    """One classical Runge-Kutta step of (X, V, theta, y) from local time t0 by h."""
-    a1, t1, y1 = _slip_rhs(cp, sign, x, v, th, y, xs0 + vs * t0, vs, fn0 + fn1 * t0)
+) -> tuple[float, float, float, float, float]:
+    """One classical Runge-Kutta step of (X, V, theta, y, e) from local time t0 by h.
+
+    e is returned uncapped (the caller applies :func:`_cap_stribeck`).
+    """
+    a1, t1, y1, e1 = _slip_rhs(cp, sign, x, v, th, y, e, xs0 + vs * t0, vs, fn0 + fn1 * t0)
     tm = t0 + 0.5 * h
     xs_m = xs0 + vs * tm
     fn_m = fn0 + fn1 * tm
-    a2, t2, y2 = _slip_rhs(
+    a2, t2, y2, e2 = _slip_rhs(
         cp, sign, x + 0.5 * h * v, v + 0.5 * h * a1, th + 0.5 * h * t1, y + 0.5 * h * y1,
-        xs_m, vs, fn_m,
+        e + 0.5 * h * e1, xs_m, vs, fn_m,
     )
     v2 = v + 0.5 * h * a1
-    a3, t3, y3 = _slip_rhs(
+    a3, t3, y3, e3 = _slip_rhs(
         cp, sign, x + 0.5 * h * v2, v + 0.5 * h * a2, th + 0.5 * h * t2, y + 0.5 * h * y2,
-        xs_m, vs, fn_m,
+        e + 0.5 * h * e2, xs_m, vs, fn_m,
     )
     v3 = v + 0.5 * h * a2
     te = t0 + h
-    a4, t4, y4 = _slip_rhs(
-        cp, sign, x + h * v3, v + h * a3, th + h * t3, y + h * y3,
+    a4, t4, y4, e4 = _slip_rhs(
+        cp, sign, x + h * v3, v + h * a3, th + h * t3, y + h * y3, e + h * e3,
         xs0 + vs * te, vs, fn0 + fn1 * te,
     )
     v4 = v + h * a3
@@ -611,7 +661,73 @@ def _rk4(
     vn = v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     thn = th + h / 6.0 * (t1 + 2.0 * t2 + 2.0 * t3 + t4)
     yn = y + h / 6.0 * (y1 + 2.0 * y2 + 2.0 * y3 + y4)
-    return xn, vn, thn, yn
+    en = e + h / 6.0 * (e1 + 2.0 * e2 + 2.0 * e3 + e4)
+    return xn, vn, thn, yn, en
+
+
+@njit(cache=True)
+def _cap_stribeck(
+    cp: np.ndarray,
+    sign: int,
+    x: float,
+    v: float,
+    th: float,
+    y: float,
+    e: float,
+    xn: float,
+    vn: float,
+    thn: float,
+    yn: float,
+    en: float,
+    xs0: float,
+    vs: float,
+    fn0: float,
+    fn1: float,
+    t0: float,
+    h: float,
+    arrest: bool,
+) -> float:
+    """Stribeck part the elements can carry at the end of an RK step from t0 to t0 + h.
+
+    e(t) = min over s <= t of [law(V(s)) + (Kt / Fn_eff) |X(t) - X(s)|]: the law's value at some
+    earlier instant plus the elastic loading since (en is the s = start term, uncapped). Where the
+    law rises over the step (the slip decelerating into the Stribeck region) the minimum is sought
+    on the cubic Hermite interpolants of X and V over the step, on a uniform grid and, in the step
+    that ends the slip (``arrest``: V -> 0), on a geometric one towards its end, so the law's rise
+    within a velocity band narrower than the step is seen, however small v_s.
+    """
+    te = t0 + h
+    fn_e = fn0 + fn1 * te
+    law_e = _stribeck_law(cp, fn_e, abs(vn))
+    cap = min(en, law_e)
+    if cp[P_VS] <= 0.0 or law_e <= _stribeck_law(cp, fn0 + fn1 * t0, abs(v)):
+        return cap
+    acc0, _, _, _ = _slip_rhs(cp, sign, x, v, th, y, e, xs0 + vs * t0, vs, fn0 + fn1 * t0)
+    acc1, _, _, _ = _slip_rhs(cp, sign, xn, vn, thn, yn, en, xs0 + vs * te, vs, fn_e)
+    fe = max(fn_e + cp[P_KAPPA] * cp[P_K0] * (xs0 + vs * te - xn), FN_CONTACT_MIN_N)
+    kfe = element_stiffness(cp, 1, fn_e, 1) / fe
+    n_uni = 16
+    n_geo = 60 if arrest else 0
+    for j in range(1, n_uni + n_geo):
+        if j < n_uni:
+            s = j / n_uni
+        else:
+            s = 1.0 - 0.5 ** (j - n_uni + 5)  # 1 - 1/32, 1 - 1/64, ... (beyond the uniform grid)
+            if s >= 1.0:
+                break
+        s2 = s * s
+        s3 = s2 * s
+        h00 = 2.0 * s3 - 3.0 * s2 + 1.0
+        h10 = s3 - 2.0 * s2 + s
+        h01 = -2.0 * s3 + 3.0 * s2
+        h11 = s3 - s2
+        xj = h00 * x + h10 * h * v + h01 * xn + h11 * h * vn
+        vj = h00 * v + h10 * h * acc0 + h01 * vn + h11 * h * acc1
+        tj = t0 + s * h
+        cand = _stribeck_law(cp, fn0 + fn1 * tj, abs(vj)) + kfe * abs(xn - xj)
+        if cand < cap:
+            cap = cand
+    return cap
 
 
 @njit(cache=True)
@@ -621,6 +737,7 @@ def _nonlinear_slip_step(
     ist: np.ndarray,
     g: np.ndarray,
     mode: np.ndarray,
+    pw1: np.ndarray,
     p_uni: np.ndarray,
     ev: np.ndarray,
     xs0: float,
@@ -636,15 +753,20 @@ def _nonlinear_slip_step(
     v = fs[S_V]
     th = fs[S_THETA]
     y = fs[S_YF]
+    e = fs[S_STRIB]
     tloc = 0.0
     while tloc < h:
         hs = min(h_rk, h - tloc)
-        xn, vn, thn, yn = _rk4(cp, sign, x, v, th, y, xs0, vs, fn0, fn1, tloc, hs)
+        xn, vn, thn, yn, en = _rk4(cp, sign, x, v, th, y, e, xs0, vs, fn0, fn1, tloc, hs)
         if sign * vn <= 0.0 and tloc + hs > 0.0:
             # locate V = 0 on the cubic Hermite interpolant of V over the step, then redo the step
-            acc0, _, _ = _slip_rhs(cp, sign, x, v, th, y, xs0 + vs * tloc, vs, fn0 + fn1 * tloc)
+            acc0, _, _, _ = _slip_rhs(
+                cp, sign, x, v, th, y, e, xs0 + vs * tloc, vs, fn0 + fn1 * tloc
+            )
             te = tloc + hs
-            acc1, _, _ = _slip_rhs(cp, sign, xn, vn, thn, yn, xs0 + vs * te, vs, fn0 + fn1 * te)
+            acc1, _, _, _ = _slip_rhs(
+                cp, sign, xn, vn, thn, yn, en, xs0 + vs * te, vs, fn0 + fn1 * te
+            )
             lo = 0.0
             hi = 1.0
             for _ in range(_BISECT_ITERS):
@@ -659,19 +781,31 @@ def _nonlinear_slip_step(
                 else:
                     lo = s
             hpart = hi * hs
-            xn, vn, thn, yn = _rk4(cp, sign, x, v, th, y, xs0, vs, fn0, fn1, tloc, hpart)
+            xn, vn, thn, yn, en = _rk4(
+                cp, sign, x, v, th, y, e, xs0, vs, fn0, fn1, tloc, hpart
+            )
+            en = _cap_stribeck(
+                cp, sign, x, v, th, y, e, xn, vn, thn, yn, en, xs0, vs, fn0, fn1, tloc, hpart,
+                True,
+            )
             tloc += hpart
             fs[S_X] = xn
             fs[S_V] = 0.0
             fs[S_THETA] = thn
             fs[S_YF] = yn
+            fs[S_STRIB] = en
             fs[S_T] += tloc
             xs1 = xs0 + vs * tloc
             fd = _drive_force(cp, xs1, vs, xn, 0.0)
             fs[S_EV_MIN] = min(fs[S_EV_MIN], fd) if sign > 0 else max(fs[S_EV_MIN], fd)
-            _end_global_slip(cp, fs, ist, g, mode, p_uni, ev, xs1, vs, fn0 + fn1 * tloc)
+            _end_global_slip(
+                cp, fs, ist, g, mode, pw1, p_uni, ev, xs1, vs, fn0 + fn1 * tloc
+            )
             return tloc, True
-        x, v, th, y = xn, vn, thn, yn
+        en = _cap_stribeck(
+            cp, sign, x, v, th, y, e, xn, vn, thn, yn, en, xs0, vs, fn0, fn1, tloc, hs, False
+        )
+        x, v, th, y, e = xn, vn, thn, yn, en
         tloc += hs
         fd = _drive_force(cp, xs0 + vs * tloc, vs, x, v)
         fs[S_EV_MIN] = min(fs[S_EV_MIN], fd) if sign > 0 else max(fs[S_EV_MIN], fd)
@@ -679,6 +813,7 @@ def _nonlinear_slip_step(
     fs[S_V] = v
     fs[S_THETA] = th
     fs[S_YF] = y
+    fs[S_STRIB] = e
     fs[S_T] += h
     return h, False
 
@@ -715,7 +850,10 @@ def _write_sample(
     stage = ist[I_STAGE]
     n = g.shape[0]
     if ist[I_GSLIP] == 1:
-        fi = ist[I_SIGN] * mu_kinetic(cp, fn, abs(v), fs[S_THETA]) * fe
+        mu = mu_kinetic_base(cp, fn, abs(v), fs[S_THETA])
+        if cp[P_VS] > 0.0:
+            mu += min(fs[S_STRIB], _stribeck_law(cp, fn, abs(v)))
+        fi = ist[I_SIGN] * mu * fe
     else:
         k = fs[S_K_USED]
         pw = pw0 if stage == 0 else pw1
@@ -816,7 +954,7 @@ def advance(
             fn1 = max(fn1, 0.0)
         steps += 1
         if fn0 < FN_CONTACT_MIN_N and fn0 + fn1 * h < FN_CONTACT_MIN_N:
-            ended = _free_step(cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0, h)
+            ended = _free_step(cp, fs, ist, g, mode, pw1, p_uni, ev, xs0, vs, fn0, h)
             fs[S_T] = target
             if ended and stop_on_slip_end:
                 return RET_SLIP_END
@@ -831,7 +969,7 @@ def advance(
                 continue
         if ist[I_GSLIP] == 1 and nonlinear:
             tau, ended = _nonlinear_slip_step(
-                cp, fs, ist, g, mode, p_uni, ev, xs0, vs, fn0, fn1, h, h_rk
+                cp, fs, ist, g, mode, pw1, p_uni, ev, xs0, vs, fn0, fn1, h, h_rk
             )
         else:
             allow = steps <= MAX_STEPS_PER_SAMPLE

@@ -54,7 +54,8 @@ S_EV_PEAK = 10  # running global slip: sensor force at start [N]
 S_EV_MIN = 11  # running global slip: lowest sensor force seen so far [N]
 S_XS = 12  # stage position at S_T [m]
 S_FN = 13  # input normal force at S_T [N]
-N_FSTATE = 14
+S_STRIB = 14  # running global slip: Stribeck part of mu the elements can carry (kernel) [-]
+N_FSTATE = 15
 
 # --- integer state vector ---------------------------------------------------------------------
 I_STAGE = 0  # 0 initial, 1 stable

@@ -301,21 +301,37 @@ def test_sensor_dynamics_smears_drops_as_a_first_order_lag():
     np.testing.assert_allclose(lag[quiet], -tau * dydt[quiet], atol=3e-3)
 
 
-def test_stribeck_drop_and_trough_depend_on_drive_velocity():
-    def drop_trough(effects: Sequence[str], v: float) -> tuple[float, float]:
-        res = simulate("classic", effects, Drive.constant(FN, v, 3e-4 / v))
+def test_stribeck_drop_and_trough_depend_on_slip_and_drive_velocity():
+    """Slips reach ~0.05 m/s; the friction is raised above mu_k while |V| is within a few v_s of 0:
+    at the onset of each slip, and (as far as the elements can take it up elastically) as it stops.
+
+    A larger v_s: higher trough, smaller drop. A drive velocity approaching v_s: slips start already
+    on the falling branch of the curve and stay smaller (stick-slip fades towards steady sliding),
+    while the base's drop changes far less. (At drive velocities << v_s, 1e-4 vs 3e-4 m/s, the
+    drops are the same within 0.1 N: that is the physics, the onset starts from V << v_s either way.)
+    """
+    def drop_trough(
+        effects: Sequence[str], v: float, vs: float | None = None
+    ) -> tuple[float, float]:
+        ep = None if vs is None else {"stribeck": {"vs_m_per_s": vs}}
+        res = simulate("classic", effects, Drive.constant(FN, v, max(3e-4 / v, 0.5)), ep)
         st = stable_events(res)[1:]
         assert len(st) >= 3
         return float(np.mean([e.drop_N for e in st])), float(np.mean([e.trough_N for e in st]))
 
-    d1, t1 = drop_trough([], 1e-4)
-    d2, t2 = drop_trough([], 3e-4)
-    assert abs(d2 - d1) < 0.02 * d1 and abs(t2 - t1) < 0.02 * t1
-    s1, u1 = drop_trough(["stribeck"], 1e-4)
-    s2, u2 = drop_trough(["stribeck"], 3e-4)
-    assert s2 < 0.9 * s1  # faster drive: weaker velocity weakening left, smaller drop
-    assert u2 > u1 + 0.5
-    assert abs(s2 - s1) > 10 * abs(d2 - d1)
+    d0, u0 = drop_trough([], 1e-4)
+    drops, troughs = zip(
+        *(drop_trough(["stribeck"], 1e-4, vs) for vs in (1e-3, 5e-3, 1e-2, 2e-2)), strict=True
+    )
+    assert np.all(np.diff(troughs) > 0) and np.all(np.diff(drops) < 0)
+    assert troughs[0] > u0 and troughs[-1] > u0 + 5.0
+    # drive velocity: 1e-4 m/s << v_s = 5e-3 m/s vs 1e-2 m/s = 2 v_s
+    s_slow, _ = drop_trough(["stribeck"], 1e-4)
+    s_fast, _ = drop_trough(["stribeck"], 1e-2)
+    d_fast, _ = drop_trough([], 1e-2)
+    assert s_fast < 0.6 * s_slow
+    assert d_fast > 0.8 * d0
+    assert s_fast < 0.7 * d_fast
 
 
 def test_presliding_rounds_off_the_stick_ramp_before_the_peak():

@@ -4,7 +4,12 @@
 
 Stribeck 1902; the exponential form as in Armstrong-Helouvry et al., Automatica 30 (1994). At the
 onset of a slip (V -> 0) the friction equals mu_s and weakens as the slip accelerates, so the stress
-drop and the trough depend on the slip velocity. Off: v_s = 0 (the exponential vanishes exactly).
+drop and the trough depend on the slip velocity. As the slip decelerates, the friction rises towards
+the law no faster than the elements' springs are loaded (d(mu Fn)/dt <= Kt |V|, elasto-plastic
+friction: Dupont, Hayward, Armstrong & Altpeter, IEEE TAC 47 (2002)), so the elements re-stick
+carrying mu_k plus what they took up, not mu_s; the effect then vanishes continuously as v_s -> 0
+(docs/model.md, "Re-stick with velocity-dependent friction"; kernel ``_cap_stribeck``).
+Off: v_s = 0 (the exponential vanishes exactly).
 """
 
 from __future__ import annotations
