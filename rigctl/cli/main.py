@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_config",
     "rigctl.cli.cmd_devices",
     "rigctl.cli.cmd_run",
+    "rigctl.cli.cmd_gui",
     "rigctl.cli.cmd_bench",
 )
 

@@ -1,0 +1,656 @@
+"""The operator's run panel: choose a protocol, set its parameters, dry-run it, run it, watch it.
+
+Threading: the rig is opened and the protocol runs in one worker :class:`threading.Thread` per action
+(dry run or run); the GUI thread never waits on a device. The worker talks to the GUI only through
+Qt signals (queued into the GUI thread): the plan, the progress callback of the
+:class:`~experiments.runner.Runner`, the live-data subscription and the final outcome. The GUI talks
+to the worker only through :class:`~experiments.context.Controls` (pause/resume/abort, thread-safe).
+Live forces come from a bounded subscription to the acquisition's publisher, drained by a QTimer in
+the GUI thread: a slow GUI loses its own oldest blocks (counted), never the recorder's.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QObject, Qt, QTimer, Signal
+from PySide6.QtGui import QCloseEvent, QColor, QFont
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QLineEdit,
+    QMessageBox,
+    QPlainTextEdit,
+    QProgressBar,
+    QPushButton,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+
+from experiments.context import Controls
+from experiments.errors import PlanError
+from experiments.params import ParamDef, parse_assignments, resolve
+from experiments.protocols import PROTOCOLS, Protocol
+from experiments.runner import Plan, Runner, RunOutcome
+from rigctl.acquisition import Acquisition
+from rigctl.acquisition.publisher import Subscription
+from rigctl.config import RigConfig, adapters
+from rigctl.config.loader import to_toml
+from rigctl.rigs import OpenRig, open_rig, parse_speed
+from rigctl.storage.layout import RunDescription
+
+PLOT_WINDOW_S = 60.0
+"""Rig time shown by the live plot."""
+SUBSCRIPTION_BLOCKS = 512
+"""Bound of the live-data mailbox (DAQ blocks); the GUI drains it every ``DRAIN_INTERVAL_MS``."""
+DRAIN_INTERVAL_MS = 100
+ABORT_REASON = "aborted by the operator"
+
+_RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
+_COLUMNS = ("name", "value", "unit", "description")
+
+
+def format_value(value: float | int | tuple[float, ...]) -> str:
+    """A parameter value as the CLI would take it (lists comma-separated; round-trips exactly)."""
+    if isinstance(value, tuple):
+        return ", ".join(repr(float(v)) for v in value)
+    return str(value) if isinstance(value, int) else repr(float(value))
+
+
+@dataclass(frozen=True)
+class _Job:
+    dry: bool
+    protocol: Protocol
+    given: dict[str, str]
+    speed: float
+    speed_text: str
+    out: Path | None
+    overwrite: bool
+    camera: bool
+    controls: Controls
+
+
+@dataclass(frozen=True)
+class _Result:
+    kind: str
+    """'dry' (plan shown), 'refused' (plan error), 'run' (outcome), 'error' (nothing recorded)."""
+    message: str = ""
+    outcome: RunOutcome | None = None
+
+
+class _WorkerSignals(QObject):
+    """Everything the worker thread tells the GUI; emitted from the worker, queued to the GUI."""
+
+    planned = Signal(object)  # Plan
+    subscribed = Signal(object)  # Subscription to the acquisition's "daq" topic
+    progress = Signal(int, int, str, float, float, float)  # i, n, step, elapsed, eta, device t
+    done = Signal(object)  # _Result
+
+
+class RunPanel(QWidget):
+    """Protocol, parameters, output, speed; dry run / start / pause / resume / abort; live view."""
+
+    def __init__(
+        self,
+        config: RigConfig,
+        backend: str = "sim",
+        *,
+        rig: OpenRig | None = None,
+        speed: str = "1",
+        parent: QWidget | None = None,
+    ) -> None:
+        """``rig``: an already open rig used for every action (tests, embedding); otherwise the
+        panel opens ``backend`` with ``config`` for each dry run or run and closes it afterwards."""
+        super().__init__(parent)
+        self.config = config
+        self.backend = backend
+        self._given_rig = rig
+        self.last_rig: OpenRig | None = rig
+        """The rig of the latest action (closed again unless it was given)."""
+        self.last_outcome: RunOutcome | None = None
+        self.samples_received = 0
+        self._thread: threading.Thread | None = None
+        self._controls: Controls | None = None
+        self._close_when_done = False
+        self._sub: Subscription | None = None
+        self._plan: Plan | None = None
+        self._progress: tuple[int, int, str, float, float, float] | None = None
+        self._t_latest = math.nan
+        self._t_origin = math.nan
+        self._wall_start = 0.0
+        self._speed = 1.0
+        self._buf: dict[str, np.ndarray] = {}
+        self._sig = _WorkerSignals(self)
+        self._sig.planned.connect(self._on_planned)
+        self._sig.subscribed.connect(self._on_subscribed)
+        self._sig.progress.connect(self._on_progress)
+        self._sig.done.connect(self._on_done)
+        self._build(speed)
+        self._timer = QTimer(self)
+        self._timer.setInterval(DRAIN_INTERVAL_MS)
+        self._timer.timeout.connect(self._tick)
+        self._set_state("idle")
+        self._fill_params()
+
+    # ------------------------------------------------------------------ layout
+    def _build(self, speed: str) -> None:
+        self.setWindowTitle(f"rigctl run panel: {self.config.rig.name} ({self.backend})")
+        self.protocol_combo = QComboBox()
+        for name, p in PROTOCOLS.items():
+            self.protocol_combo.addItem(name, name)
+            self.protocol_combo.setItemData(self.protocol_combo.count() - 1, p.summary,
+                                            Qt.ItemDataRole.ToolTipRole)
+        self.protocol_combo.currentIndexChanged.connect(self._fill_params)
+        self.summary_label = QLabel()
+        self.summary_label.setWordWrap(True)
+
+        self.param_table = QTableWidget(0, len(_COLUMNS))
+        self.param_table.setHorizontalHeaderLabels(list(_COLUMNS))
+        header = self.param_table.horizontalHeader()
+        header.setSectionResizeMode(0, QHeaderView.ResizeMode.ResizeToContents)
+        header.setSectionResizeMode(1, QHeaderView.ResizeMode.Interactive)
+        header.setSectionResizeMode(2, QHeaderView.ResizeMode.ResizeToContents)
+        header.setStretchLastSection(True)
+        self.param_table.setColumnWidth(1, 170)
+        self.param_table.verticalHeader().setVisible(False)
+        self.param_table.itemChanged.connect(self._clear_param_marks)
+
+        self.out_edit = QLineEdit()
+        self.out_edit.setPlaceholderText(
+            f"default: {self.config.storage.directory}/<protocol>_<date-time>.h5")
+        browse = QPushButton("…")
+        browse.setToolTip("choose the run file")
+        browse.clicked.connect(self._browse)
+        out_row = QHBoxLayout()
+        out_row.addWidget(self.out_edit)
+        out_row.addWidget(browse)
+        self.speed_combo = QComboBox()
+        self.speed_combo.setEditable(True)
+        self.speed_combo.addItems(["1", "10", "100", "max"])
+        self.speed_combo.setCurrentText(speed)
+        self.speed_combo.setToolTip("simulated rig clock: 1 (real time), N times faster, or max "
+                                    "(paced by the recorder)")
+        if self._given_rig is not None:
+            self.speed_combo.setCurrentText("max" if math.isinf(self._given_rig.speed)
+                                            else f"{self._given_rig.speed:g}")
+            self.speed_combo.setEnabled(False)
+        elif self.backend == "real":
+            self.speed_combo.setCurrentText("1")
+            self.speed_combo.setEnabled(False)
+        self.camera_check = QCheckBox("record camera frames")
+        self.camera_check.setChecked(True)
+
+        form = QFormLayout()
+        form.addRow("Protocol", self.protocol_combo)
+        form.addRow("", self.summary_label)
+        form.addRow("Run file", out_row)
+        form.addRow("Speed", self.speed_combo)
+        form.addRow("", self.camera_check)
+
+        self.dry_button = QPushButton("Dry run")
+        self.dry_button.setToolTip("check the plan against the rig's limits; nothing moves")
+        self.start_button = QPushButton("Start")
+        self.pause_button = QPushButton("Pause")
+        self.resume_button = QPushButton("Resume")
+        self.abort_button = QPushButton("Abort")
+        self.abort_button.setToolTip("stop, release the normal load, close the file as aborted")
+        self.abort_button.setStyleSheet(f"QPushButton:enabled {{ font-weight: bold; color: {_RED} }}")
+        self.dry_button.clicked.connect(lambda: self._launch(dry=True))
+        self.start_button.clicked.connect(lambda: self._launch(dry=False))
+        self.pause_button.clicked.connect(self.pause)
+        self.resume_button.clicked.connect(self.resume)
+        self.abort_button.clicked.connect(lambda: self.abort())  # not clicked(bool) as reason
+        buttons = QHBoxLayout()
+        for b in (self.dry_button, self.start_button, self.pause_button, self.resume_button,
+                  self.abort_button):
+            buttons.addWidget(b)
+
+        self.progress_bar = QProgressBar()
+        self.progress_bar.setRange(0, 1000)
+        self.progress_bar.setFormat("%p %")
+        self.progress_label = QLabel("")
+        self.status_label = QLabel("ready")
+        self.status_label.setWordWrap(True)
+        self.status_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.plan_view = QPlainTextEdit()
+        self.plan_view.setReadOnly(True)
+        mono = QFont("monospace")
+        mono.setStyleHint(QFont.StyleHint.Monospace)
+        mono.setPointSize(8)
+        self.plan_view.setFont(mono)
+        self.plan_view.setPlaceholderText("Dry run: the plan (steps and rig time) appears here")
+
+        self.plot = pg.PlotWidget(background="w")
+        self.plot.setLabel("bottom", "rig time", units="s")
+        self.plot.setLabel("left", "force", units="N")
+        self.plot.showGrid(x=True, y=True, alpha=0.3)
+        self.plot.addLegend(offset=(10, 10))
+        self.plot.setDownsampling(auto=True, mode="peak")
+        self.plot.setClipToView(True)
+        self.ft_curve = self.plot.plot(name="Ft", pen=pg.mkPen("#1565c0", width=1.5))
+        self.fn_curve = self.plot.plot(name="Fn", pen=pg.mkPen(_RED, width=1.5))
+        self.plot.setMinimumHeight(220)
+
+        left = QVBoxLayout()
+        left.addLayout(form)
+        left.addWidget(self.param_table, 3)
+        left.addLayout(buttons)
+        left.addWidget(self.progress_bar)
+        left.addWidget(self.progress_label)
+        left.addWidget(self.status_label)
+        right = QVBoxLayout()
+        right.addWidget(self.plot, 3)
+        right.addWidget(self.plan_view, 2)
+        top = QHBoxLayout(self)
+        top.addLayout(left, 1)
+        top.addLayout(right, 1)
+        self.resize(1150, 640)
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def protocol(self) -> Protocol:
+        return PROTOCOLS[str(self.protocol_combo.currentData())]
+
+    def _fill_params(self) -> None:
+        p = self.protocol
+        self.summary_label.setText(p.summary)
+        table = self.param_table
+        table.blockSignals(True)
+        table.setRowCount(len(p.params))
+        for row, d in enumerate(p.params):
+            cells = (d.name, format_value(d.default), d.unit, d.doc)
+            for col, text in enumerate(cells):
+                item = QTableWidgetItem(text)
+                item.setToolTip(f"{d.name} [{d.unit}]: {d.doc}; default {format_value(d.default)}"
+                                + ("; comma-separated list" if d.is_list else ""))
+                if col != 1:
+                    item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
+                table.setItem(row, col, item)
+        table.blockSignals(False)
+
+    def param_values(self) -> dict[str, str]:
+        """The table's values as text, by parameter name."""
+        out: dict[str, str] = {}
+        for row in range(self.param_table.rowCount()):
+            name, value = self.param_table.item(row, 0), self.param_table.item(row, 1)
+            if name is not None and value is not None:
+                out[name.text()] = value.text()
+        return out
+
+    def set_param(self, name: str, value: str) -> None:
+        for row in range(self.param_table.rowCount()):
+            item = self.param_table.item(row, 0)
+            if item is not None and item.text() == name:
+                cell = self.param_table.item(row, 1)
+                if cell is not None:
+                    cell.setText(value)
+                return
+        raise KeyError(f"protocol '{self.protocol.name}' has no parameter '{name}'")
+
+    def _given(self) -> dict[str, str]:
+        """Parameters changed from their defaults, parsed and checked as the CLI's ``--param``.
+
+        Raises PlanError naming the parameter (and marks its row)."""
+        p = self.protocol
+        defaults = {d.name: format_value(d.default) for d in p.params}
+        items = [f"{k}={v}" for k, v in self.param_values().items() if v.strip() != defaults[k]]
+        given = parse_assignments(items)
+        try:
+            resolve(p.params, given, p.name)
+        except PlanError as exc:
+            self._mark_bad(p.params, str(exc))
+            raise
+        return given
+
+    def _mark_bad(self, defs: tuple[ParamDef, ...], message: str) -> None:
+        for row, d in enumerate(defs):
+            if f"'{d.name}'" in message:
+                cell = self.param_table.item(row, 1)
+                if cell is not None:
+                    self.param_table.blockSignals(True)
+                    cell.setBackground(QColor("#ffcdd2"))
+                    self.param_table.blockSignals(False)
+
+    def _clear_param_marks(self, item: QTableWidgetItem) -> None:
+        if item.column() == 1:
+            self.param_table.blockSignals(True)
+            for row in range(self.param_table.rowCount()):
+                cell = self.param_table.item(row, 1)
+                if cell is not None:
+                    cell.setBackground(QColor(0, 0, 0, 0))
+            self.param_table.blockSignals(False)
+
+    def _browse(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Run file", self.out_edit.text()
+                                              or str(self.config.storage.directory),
+                                              "HDF5 run files (*.h5)")
+        if path:
+            self.out_edit.setText(path)
+
+    # ------------------------------------------------------------------ actions (GUI thread)
+    @property
+    def busy(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _launch(self, dry: bool) -> None:
+        if self.busy:
+            return
+        try:
+            given = self._given()
+            speed_text = self.speed_combo.currentText().strip()
+            speed = parse_speed(speed_text)
+        except (PlanError, ValueError) as exc:
+            self._status(str(exc), _RED)
+            return
+        out = None
+        overwrite = False
+        if not dry:
+            text = self.out_edit.text().strip()
+            if text:
+                out = Path(text).expanduser()
+            else:
+                folder = Path(self.config.storage.directory)
+                try:
+                    folder.mkdir(parents=True, exist_ok=True)
+                except OSError as exc:
+                    self._status(f"storage folder {folder}: {exc}", _RED)
+                    return
+                out = folder / f"{self.protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}.h5"
+            if out.exists():
+                if not self._ask(f"{out} exists. Overwrite it?"):
+                    self._status("not started: the run file exists", _ORANGE)
+                    return
+                overwrite = True
+        self._controls = Controls()
+        job = _Job(dry, self.protocol, given, speed, speed_text, out, overwrite,
+                   self.camera_check.isChecked(), self._controls)
+        self._speed = speed
+        self._plan = None
+        self._progress = None
+        self.last_outcome = None
+        if not dry:
+            self._reset_plot()
+            self.progress_bar.setValue(0)
+            self.progress_label.setText("starting…")
+        self.plan_view.setStyleSheet("")
+        self._status("dry run: checking the plan against the limits…" if dry
+                     else f"starting {self.protocol.name}…", None)
+        self._set_state("busy" if dry else "running")
+        self._thread = threading.Thread(target=self._work, args=(job,), name="rigctl-gui-run",
+                                        daemon=False)
+        self._thread.start()
+
+    def pause(self) -> None:
+        if self._controls is not None and self.busy:
+            self._controls.pause()
+            self._set_state("paused")
+            self._status("paused: the stages hold where they are (rig time and recording go on)",
+                         _ORANGE)
+
+    def resume(self) -> None:
+        if self._controls is not None and self.busy:
+            self._controls.resume()
+            self._set_state("running")
+            self._status("running", None)
+
+    def abort(self, reason: str = ABORT_REASON) -> None:
+        if self._controls is not None and self.busy:
+            self._controls.abort(reason)
+            self._controls.resume()
+            self._set_state("aborting")
+            self._status("aborting: stopping and releasing the normal load…", _ORANGE)
+
+    def shutdown(self, timeout_s: float = 30.0) -> bool:
+        """Abort any run and wait for the worker (safe state reached); True if it ended."""
+        self.abort()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+        return not self.busy
+
+    def _ask(self, question: str) -> bool:
+        answer = QMessageBox.question(self, "rigctl", question,
+                                      QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+                                      QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        if not self.busy:
+            self._timer.stop()
+            event.accept()
+            return
+        if not self._close_when_done:
+            if self._controls is not None and not self._controls.aborted and not self._ask(
+                    "A run is in progress. Abort it (the rig is brought to a safe state) and close?"):
+                event.ignore()
+                return
+            self._close_when_done = True
+            self.abort(ABORT_REASON + " (window closed)")
+            self._status("closing once the rig is in a safe state…", _ORANGE)
+        event.ignore()  # closed by _on_done when the worker has finished
+
+    def _set_state(self, state: str) -> None:
+        idle = state == "idle"
+        self.dry_button.setEnabled(idle)
+        self.start_button.setEnabled(idle)
+        self.protocol_combo.setEnabled(idle)
+        self.param_table.setEnabled(idle)
+        self.out_edit.setEnabled(idle)
+        self.camera_check.setEnabled(idle)
+        self.speed_combo.setEnabled(idle and self._given_rig is None and self.backend != "real")
+        self.pause_button.setEnabled(state == "running")
+        self.resume_button.setEnabled(state == "paused")
+        self.abort_button.setEnabled(state in ("running", "paused"))
+        self.state = state
+
+    def _status(self, text: str, color: str | None) -> None:
+        self.status_label.setText(text)
+        self.status_label.setStyleSheet(f"color: {color}; font-weight: bold" if color else "")
+
+    # ------------------------------------------------------------------ worker thread
+    @contextlib.contextmanager
+    def _open(self, job: _Job) -> Iterator[OpenRig]:
+        if self._given_rig is not None:
+            yield self._given_rig
+            return
+        with open_rig(self.backend, self.config, job.speed) as rig:
+            self.last_rig = rig
+            yield rig
+
+    def _work(self, job: _Job) -> None:
+        """Runs in the worker thread: talks to the GUI only by emitting signals."""
+        result = _Result("error", "nothing done")
+        try:
+            with self._open(job) as rig:
+                runner = self._runner(job, rig)
+                try:
+                    plan, _ = runner.plan()
+                except PlanError as exc:
+                    result = _Result("refused", f"dry run refused: {exc}")
+                    return
+                self._sig.planned.emit(plan)
+                if job.dry:
+                    result = _Result("dry", "dry run: nothing moved")
+                    return
+                outcome = runner.run()
+                result = _Result("run", outcome.status, outcome)
+        except PlanError as exc:
+            result = _Result("refused", f"refused: {exc}")
+        except Exception as exc:
+            result = _Result("error", f"{type(exc).__name__}: {exc}")
+        finally:
+            self._sig.done.emit(result)
+
+    def _runner(self, job: _Job, rig: OpenRig) -> Runner:
+        pacer = rig.pacer
+        sig = self._sig
+
+        def on_acquisition(acq: Acquisition) -> None:
+            if pacer is not None:
+                pacer.follow(lambda: acq.t_s)
+            sig.subscribed.emit(acq.publisher.subscribe("daq", maxlen=SUBSCRIPTION_BLOCKS))
+
+        def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
+            ctx = runner.ctx
+            sig.progress.emit(i, n, desc, elapsed, eta, ctx.acq.t_s if ctx else math.nan)
+
+        desc = RunDescription(
+            protocol=job.protocol.name, operator=self.config.rig.operator,
+            config_toml=to_toml(rig.config),
+            metadata={"backend": self.backend, "speed": job.speed_text, "rig": self.config.rig.name,
+                      "started_from": "gui"},
+        )
+        runner = Runner(
+            job.protocol, job.given, rig.devices, rig.limits, out=job.out,
+            daq_layout=adapters.daq_layout(rig.config),
+            camera_layout=adapters.camera_layout(rig.config) if job.camera else None,
+            description=desc, controls=job.controls,
+            force_limit_N=adapters.force_limit_N(rig.config), progress=progress,
+            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=job.overwrite,
+            on_acquisition=on_acquisition,
+        )
+        return runner
+
+    # ------------------------------------------------------------------ signal handlers (GUI thread)
+    def _on_planned(self, plan: Plan) -> None:
+        self._plan = plan
+        text = plan.summary()
+        if math.isfinite(self._speed):
+            text += f"\nwall time at speed {self._speed:g}: ~{plan.duration_s / self._speed:.0f} s"
+        self.plan_view.setPlainText(text)
+
+    def _on_subscribed(self, sub: Subscription) -> None:
+        self._sub = sub
+        self._wall_start = time.monotonic()
+        self._timer.start()
+        if self.state == "running":
+            self._status(f"running {self.protocol.name}: recording", None)
+
+    def _on_progress(self, i: int, n: int, desc: str, elapsed: float, eta: float,
+                     t_dev: float) -> None:
+        self._progress = (i, n, desc, elapsed, eta, t_dev)
+        self._show_progress()
+
+    def _on_done(self, result: _Result) -> None:
+        self._tick()
+        self._timer.stop()
+        self._sub = None
+        self._thread = None
+        self._set_state("idle")
+        if result.kind == "dry":
+            self._status("dry run: plan within the limits; nothing moved", _GREEN)
+        elif result.kind == "refused":
+            self.plan_view.setPlainText(result.message)
+            self.plan_view.setStyleSheet(f"color: {_RED}")
+            self._status(result.message, _RED)
+            self._mark_bad(self.protocol.params, result.message)
+        elif result.kind == "error":
+            self.plan_view.setStyleSheet(f"color: {_RED}")
+            self._status(f"not run: {result.message}", _RED)
+        else:
+            self._show_outcome(result.outcome)
+        if self._close_when_done:
+            QTimer.singleShot(0, self.close)
+
+    def _show_outcome(self, outcome: RunOutcome | None) -> None:
+        if outcome is None:
+            return
+        self.last_outcome = outcome
+        text = f"{outcome.status}: {outcome.path} ({outcome.wall_s:.1f} s wall)"
+        st = outcome.stats
+        if st is not None:
+            text += (f"; {st.daq_samples} samples, "
+                     f"{st.daq_dropped + st.queue_dropped_samples} dropped")
+        if outcome.error:
+            text += f"\n{outcome.error}"
+        if outcome.status == "completed":
+            self.progress_bar.setValue(self.progress_bar.maximum())
+            self.progress_label.setText("completed")
+            self._status(text, _GREEN)
+        else:
+            self.progress_label.setText(f"{outcome.status}: the rig is in a safe state"
+                                        if not outcome.problems else
+                                        f"{outcome.status}: safe state INCOMPLETE")
+            self._status(text, _ORANGE if outcome.status == "aborted" else _RED)
+
+    # ------------------------------------------------------------------ live data (GUI thread)
+    def _reset_plot(self) -> None:
+        self._buf = {k: np.empty(0) for k in ("t_s", "ft_N", "fn_N")}
+        self._t_latest = math.nan
+        self._t_origin = math.nan
+        self.samples_received = 0
+        self.ft_curve.setData([], [])
+        self.fn_curve.setData([], [])
+
+    def _tick(self) -> None:
+        sub = self._sub
+        if sub is None:
+            return
+        blocks = sub.drain()
+        if blocks:
+            new = {k: np.concatenate([b[k] for b in blocks]) for k in self._buf}
+            self.samples_received += int(new["t_s"].shape[0])
+            if math.isnan(self._t_origin):
+                self._t_origin = float(new["t_s"][0])
+            self._t_latest = float(new["t_s"][-1])
+            keep_from = self._t_latest - PLOT_WINDOW_S
+            for k in self._buf:
+                self._buf[k] = np.concatenate([self._buf[k], new[k]])
+            first = int(np.searchsorted(self._buf["t_s"], keep_from))
+            if first:
+                self._buf = {k: v[first:] for k, v in self._buf.items()}
+            x = self._buf["t_s"] - self._t_origin
+            self.ft_curve.setData(x, self._buf["ft_N"])
+            self.fn_curve.setData(x, self._buf["fn_N"])
+            if sub.dropped:
+                self.plot.setTitle(f"live view skipped {sub.dropped} blocks (display only)",
+                                   color=_ORANGE, size="8pt")
+        self._show_progress()
+
+    def _show_progress(self) -> None:
+        plan, prog = self._plan, self._progress
+        if plan is None or prog is None:
+            return
+        i, n, desc, elapsed, eta, t_dev = prog
+        total = max(plan.duration_s, 1e-9)
+        step_est = plan.steps[i - 1].estimate_s if 0 < i <= len(plan.steps) else 0.0
+        in_step = 0.0
+        if math.isfinite(self._t_latest) and math.isfinite(t_dev):
+            in_step = min(max(self._t_latest - t_dev, 0.0), step_est)
+        done = min(total - eta + in_step, total)
+        remaining = max(eta - in_step, 0.0)
+        self.progress_bar.setValue(round(1000 * done / total))
+        rig_elapsed = elapsed + (max(self._t_latest - t_dev, 0.0)
+                                 if math.isfinite(self._t_latest) and math.isfinite(t_dev) else 0.0)
+        wall = time.monotonic() - self._wall_start
+        rate = rig_elapsed / wall if wall > 1.0 and rig_elapsed > 0 else (
+            self._speed if math.isfinite(self._speed) else math.nan)
+        wall_eta = ""
+        if rate == rate and rate > 0:
+            wall_s = remaining / rate
+            wall_eta = f" (~{wall_s:.0f} s wall)" if wall_s >= 1 else " (<1 s wall)"
+        paused = " [paused]" if self._controls is not None and self._controls.paused else ""
+        self.progress_label.setText(
+            f"step {i}/{n}: {desc}{paused}\nrig time {rig_elapsed:.0f} s of ~{total:.0f} s, "
+            f"ETA {remaining:.0f} s{wall_eta}")
+
+
+def panel_state(panel: RunPanel) -> dict[str, Any]:
+    """What the panel shows, for logs and tests."""
+    return {"state": panel.state, "status": panel.status_label.text(),
+            "progress": panel.progress_bar.value(), "samples": panel.samples_received}
