@@ -74,7 +74,9 @@ def run(args: argparse.Namespace) -> int:
     out = args.out
     if out is None and not args.dry_run:
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        out = Path(config.storage.directory) / f"{protocol.name}_{stamp}.h5"
+        folder = Path(config.storage.directory)
+        folder.mkdir(parents=True, exist_ok=True)  # the configured folder; an explicit --out's must exist
+        out = folder / f"{protocol.name}_{stamp}.h5"
     with open_rig(backend, config, speed) as rig:
         camera = None if args.no_camera else adapters.camera_layout(rig.config)
         desc = RunDescription(
