@@ -22,6 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_run",
     "rigctl.cli.cmd_gui",
     "rigctl.cli.cmd_bench",
+    "rigctl.cli.cmd_model",
 )
 
 

@@ -1,0 +1,241 @@
+"""Model workbench commands: ``rigctl model compare`` and ``rigctl model diagnose``.
+
+* ``model compare DATA... [--base paper|classic] [--effects a,b] [--effect-file F.py]
+  [--no-fit] [--json] [--report DIR]``: identify the model on the runs (files or folders = a
+  campaign), simulate every run on its measured stage position and normal force, and report the
+  event-aware error, per-feature errors, parameters with uncertainties and where the model fails.
+* ``model diagnose DATA... [--base ...] [--effects ...] [--effect-file F.py] [--candidates a,b]
+  [--auto] [--workers N] [--scheduler ADDRESS] [--timeout S] [--json] [--report DIR]``: fit every
+  candidate effect of the library and the plug-ins, rank them by evidence (BIC over slip events) and
+  give the verdict; ``--auto`` adds the best significant effect and repeats.
+
+See docs/workbench.md. Data problems raise ``DataError`` naming the file (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from rigctl.cli.main import UsageError
+
+# numpy, scipy, the engine and matplotlib are imported inside the commands.
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("data", nargs="+", metavar="DATA",
+                   help="run files (.csv, .h5) or folders of them (a campaign)")
+    p.add_argument("--base", default="paper", choices=("paper", "classic"),
+                   help="base model (default: paper)")
+    p.add_argument("--effects", default="", metavar="A,B",
+                   help="effects to add to the base (comma-separated names)")
+    p.add_argument("--effect-file", action="append", default=[], metavar="F.py",
+                   help="plug-in effect file (repeatable); its effects become available")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--report", type=Path, metavar="DIR", help="write an HTML + PNG report here")
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    model = subparsers.add_parser(
+        "model", help="compare the physics model with measurements and diagnose what is missing",
+        description="Model workbench: compare, see where it fails, rank missing effects.",
+    )
+    sub = model.add_subparsers(dest="model_command", metavar="ACTION",
+                               parser_class=type(model))
+    sub.required = True
+    cmp = sub.add_parser("compare", help="identify the model and compare it with the data",
+                         description="Identify, simulate and compare model and measurement.")
+    _add_common(cmp)
+    cmp.add_argument("--no-fit", action="store_true",
+                     help="compare with the parameter values as given (no identification)")
+    cmp.set_defaults(func=run_compare)
+
+    dia = sub.add_parser("diagnose", help="rank candidate effects by evidence",
+                         description="Fit base + each candidate effect and rank them.")
+    _add_common(dia)
+    dia.add_argument("--candidates", default="", metavar="A,B",
+                     help="only these candidates (default: the whole library and plug-ins)")
+    dia.add_argument("--auto", action="store_true",
+                     help="add the best significant effect, re-identify, repeat")
+    dia.add_argument("--workers", type=int, default=None, metavar="N",
+                     help="parallel processes (default: the CPUs)")
+    dia.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="run the candidate fits on this Dask distributed scheduler")
+    dia.add_argument("--timeout", type=float, default=300.0, metavar="S",
+                     help="time limit of one candidate fit in seconds (default 300)")
+    dia.set_defaults(func=run_diagnose)
+
+
+def _names(text: str) -> list[str]:
+    return [n.strip() for n in text.split(",") if n.strip()]
+
+
+def _choice(args: argparse.Namespace) -> Any:
+    from rigctl.workbench.model_choice import ModelChoice, registry_for
+
+    files = tuple(str(Path(f).resolve()) for f in args.effect_file)
+    for f in files:
+        if not Path(f).is_file():
+            raise UsageError(f"--effect-file {f}: no such file")
+    registry = registry_for(files)
+    effects = _names(args.effects)
+    for name in effects:
+        if name not in registry:
+            raise UsageError(f"unknown effect '{name}' (known: {', '.join(sorted(registry))})")
+    choice = ModelChoice(args.base, tuple(effects), {}, files)
+    choice.build()  # parameter problems surface here, as one line
+    return choice
+
+
+def _load(args: argparse.Namespace) -> list[Any]:
+    from rigctl.io.load import load_runs
+
+    return load_runs([str(p) for p in args.data])
+
+
+def _progress(args: argparse.Namespace) -> Any:
+    if args.json:
+        return None
+    return lambda msg: print(msg, file=sys.stderr, flush=True)
+
+
+def _clean(obj: Any) -> Any:
+    """JSON-safe: NaN/inf become null."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    return obj
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    from rigctl.workbench.compare import compare
+    from rigctl.workbench.report import write_compare_report
+
+    choice = _choice(args)
+    runs = _load(args)
+    cmp = compare(runs, choice, identify=not args.no_fit, progress=_progress(args))
+    if args.report:
+        path = write_compare_report(cmp, args.report)
+        if not args.json:
+            print(f"report: {path}")
+    if args.json:
+        print(json.dumps(_clean(cmp.to_json()), indent=2))
+        return 0
+    _print_compare(cmp)
+    return 0
+
+
+def _print_compare(cmp: Any) -> None:
+    from rigctl.workbench.feature_info import FEATURES
+
+    print(f"model {cmp.fit.choice.label()}: error {cmp.fit.error:.3g} "
+          f"({cmp.dataset.n_events} slip events in {len(cmp.dataset.runs)} run(s))")
+    for note in cmp.dataset.notes:
+        print(f"note: {note}")
+    print("\nper-feature error (z: in units of the measured scatter; RMS/mean: model - measured)")
+    for name, fe in cmp.errors.items():
+        z = cmp.fit.feature_error.get(name, math.nan)
+        print(f"  {FEATURES[name].phrase[:44]:44s} z {z:7.2f}   RMS {fe.rms:10.4g}  "
+              f"mean {fe.mean:10.4g} {fe.unit}")
+    print("\nparameters")
+    for r in cmp.parameter_rows():
+        if not r["fitted"]:
+            continue
+        sig = f" +- {r['sigma']:.3g}" if r["sigma"] is not None else ""
+        flag = "" if r["determined"] else "   <- not determined by these data"
+        print(f"  {r['name']:32s} {r['value']:.5g}{sig} {r['unit']}{flag}")
+    print("\nwhere it fails")
+    for s in cmp.discrepancies or ["no structured discrepancy above the scatter"]:
+        print(f"  - {s}")
+
+
+def run_diagnose(args: argparse.Namespace) -> int:
+    from rigctl.workbench.compare import compare
+    from rigctl.workbench.dataset import prepare_dataset
+    from rigctl.workbench.diagnose import diagnose
+    from rigctl.workbench.model_choice import candidate_effects, registry_for
+    from rigctl.workbench.report import write_diagnose_report
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1")
+    if not args.timeout > 0:
+        raise UsageError("--timeout must be positive")
+    choice = _choice(args)
+    candidates = _names(args.candidates) or candidate_effects(choice)
+    known = registry_for(choice.effect_files)
+    for name in candidates:
+        if name not in known:
+            raise UsageError(f"unknown candidate '{name}' (known: {', '.join(sorted(known))})")
+    if not candidates:
+        raise UsageError("no candidate effects left to try")
+    runs = _load(args)
+    dataset = prepare_dataset(runs)
+    progress = _progress(args)
+    client = None
+    if args.scheduler:
+        from rigctl.workbench.parallel import CONNECT_TIMEOUT_S, connect
+
+        # connect before any fitting: an unreachable cluster is a one-line error at once
+        client = connect(args.scheduler, min(args.timeout, CONNECT_TIMEOUT_S))
+    try:
+        diag = diagnose(dataset, choice, candidates=candidates, auto=args.auto,
+                        workers=args.workers, scheduler=client, progress=progress,
+                        timeout_s=args.timeout)
+    finally:
+        if client is not None:
+            client.close()
+    if args.report:
+        cmp = compare(runs, diag.first.model.choice, identify=False, dataset=dataset)
+        cmp.fit = diag.first.model
+        path = write_diagnose_report(diag, cmp, args.report)
+        if not args.json:
+            print(f"report: {path}")
+    if args.json:
+        print(json.dumps(_clean(diag.to_json(args.auto)), indent=2))
+        return 0
+    _print_diagnosis(diag, args.auto)
+    return 0
+
+
+def _print_diagnosis(diag: Any, auto: bool) -> None:
+    r0 = diag.first
+    print(f"model {r0.model.choice.label()}: baseline error {r0.model.error:.3g} "
+          f"({diag.dataset.n_events} slip events)")
+    print(f"protocols in the data: {', '.join(diag.protocols) or 'none recognised'}")
+    print("\n  effect                      error  reduction   delta BIC  signif.  explains")
+    for s in r0.ranking:
+        red = f"{s.error_reduction * 100:6.0f} %" if math.isfinite(s.error_reduction) else \
+            "      -"
+        dbic = f"{s.delta_bic:10.1f}" if math.isfinite(s.delta_bic) else "         -"
+        print(f"  {s.effect:26s} {s.error:7.3g}  {red}  {dbic}  "
+              f"{'yes' if s.significant else '   '}      {s.explains}")
+    v = r0.verdict
+    extra = f" ({', '.join(v.candidates)})" if v.candidates else ""
+    print(f"\nverdict: {v.verdict}{extra}")
+    if v.suggest:
+        print(f"to tell them apart: {v.suggest}")
+    if r0.discrepancies:
+        print("\nwhere the model fails")
+        for s in r0.discrepancies:
+            print(f"  - {s}")
+    if auto:
+        print("\nerror at each step (bar: error relative to the first model)")
+        first = diag.steps[0].error
+        prev = None
+        for st in diag.steps:
+            note = f" ({st.note})" if st.note else ""
+            fall = f" {(st.error - prev) / prev * 100:+5.0f} %" if prev else "        "
+            frac = st.error / first if first > 0 and math.isfinite(st.error) else 0.0
+            bar = "#" * max(1, round(30 * min(frac, 1.0)))
+            print(f"  {st.index}: {st.model:46s} error {st.error:8.3g}{fall}  {bar}{note}")
+            prev = st.error
+        last = diag.rounds[-1].verdict.verdict
+        print("  stopped: " + ("nothing significant left" if last == "none" else
+                               "step limit reached"))

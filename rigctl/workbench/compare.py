@@ -1,0 +1,117 @@
+"""Compare a model with a measured campaign: identify it, simulate every run, locate the misfit.
+
+This is ``rigctl model compare``: the model (base + chosen effects) is identified on the data
+(:mod:`rigctl.workbench.fitting`), simulated on each run's measured stage position and normal force,
+and put against the measurement as per-event features, the event-aware error
+(:mod:`rigctl.workbench.metrics`) and a residual map with the largest structured discrepancies in
+words (:mod:`rigctl.workbench.residual_map`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from rigctl.data import MeasuredRun
+from rigctl.model import SimResult
+from rigctl.workbench.dataset import Dataset, prepare_dataset, protocols_present
+from rigctl.workbench.evaluate import Evaluation, evaluate
+from rigctl.workbench.fitting import identify_model
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.metrics import FeatureError, physical_errors
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.residual_map import (
+    ResidualMap,
+    discrepancies,
+    residual_map,
+    significant_trends,
+)
+
+
+@dataclass
+class Comparison:
+    runs: list[MeasuredRun]
+    dataset: Dataset
+    fit: FitResult
+    evaluation: Evaluation
+    errors: dict[str, FeatureError]
+    rmap: ResidualMap
+    discrepancies: list[str]
+    identified: bool
+
+    @property
+    def results(self) -> list[SimResult]:
+        return self.evaluation.results or []
+
+    def parameter_rows(self) -> list[dict[str, Any]]:
+        rows = []
+        for p in self.fit.choice.parameter_table():
+            fitted = p.name in self.fit.free
+            sigma = self.fit.sigma.get(p.name, math.nan)
+            rows.append({
+                "name": p.name, "value": p.value, "unit": p.unit, "owner": p.owner,
+                "fitted": fitted, "sigma": sigma if math.isfinite(sigma) else None,
+                "determined": fitted and p.name not in self.fit.undetermined,
+            })
+        return rows
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "model": self.fit.choice.label(),
+            "base": self.fit.choice.base,
+            "effects": list(self.fit.choice.effects),
+            "identified": self.identified,
+            "error": self.fit.error,
+            "feature_errors": {
+                name: {
+                    "z": self.fit.feature_error.get(name),
+                    "rms": fe.rms, "mean": fe.mean, "unit": fe.unit, "n": fe.n,
+                }
+                for name, fe in self.errors.items()
+            },
+            "parameters": self.parameter_rows(),
+            "undetermined": list(self.fit.undetermined),
+            "discrepancies": self.discrepancies,
+            "residual_by_stage": self.rmap.by_stage,
+            "residual_by_phase": self.rmap.by_phase,
+            "residual_by_time": {k: [float(x) for x in v] for k, v in self.rmap.by_time.items()},
+            "residual_trends": [
+                {"feature": t.feature, "covariate": t.covariate, "log": t.log,
+                 "amplitude_z": t.amplitude_z, "t": t.t_stat, "n": t.n}
+                for t in significant_trends(self.rmap)
+            ],
+            "runs": [
+                {"name": r.name, "events_measured": r.events.n, "events_model": m.n}
+                for r, m in zip(self.dataset.runs, self.evaluation.events, strict=True)
+            ],
+            "n_events": self.dataset.n_events,
+            "protocols_present": protocols_present(self.dataset),
+            "notes": list(self.dataset.notes),
+        }
+
+
+def compare(
+    runs: Sequence[MeasuredRun],
+    choice: ModelChoice,
+    *,
+    identify: bool = True,
+    dataset: Dataset | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Comparison:
+    say = progress or (lambda _m: None)
+    ds = dataset or prepare_dataset(list(runs))
+    if identify:
+        say(f"identifying {choice.label()} on {ds.n_events} slip events ...")
+        fit = identify_model(ds, choice)
+    else:
+        ev0 = evaluate(ds, choice)
+        fit = FitResult(choice, ev0.score.error, ev0.score.feature_error, ())
+    ev = evaluate(ds, fit.choice, keep_results=True)
+    rmap = residual_map(ds, ev.score.comparisons)
+    return Comparison(
+        runs=list(runs), dataset=ds, fit=fit, evaluation=ev,
+        errors=physical_errors(ev.score.comparisons), rmap=rmap,
+        discrepancies=discrepancies(rmap), identified=identify,
+    )

@@ -1,0 +1,252 @@
+"""Learn what is missing: fit every candidate effect, rank by evidence, optionally add and repeat.
+
+:func:`diagnose` identifies the model on the campaign, fits base + each candidate effect in parallel
+(:mod:`rigctl.workbench.parallel`), ranks them (:mod:`rigctl.workbench.ranking`) and explains each
+by the residual structure it removes (:mod:`rigctl.workbench.residual_map`). With ``auto`` the best
+significant effect is added, the model re-identified, and the round repeated until nothing
+significant is left; every step's error is kept for the error-fall chart.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from rigctl.workbench.dataset import Dataset, protocols_present
+from rigctl.workbench.drive_profile import DriveProfile
+from rigctl.workbench.evaluate import evaluate, simulate_run
+from rigctl.workbench.feature_info import FEATURES
+from rigctl.workbench.fitting import CandidateTask, fit_candidate, identify_model
+from rigctl.workbench.identify import FitResult, fit, fn_range, free_params, physically_valid
+from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
+from rigctl.workbench.ranking import CandidateScore, Verdict, rank, score_candidate, verdict
+from rigctl.workbench.residual_map import (
+    COVARIATE_NAMES,
+    ResidualMap,
+    discrepancies,
+    residual_map,
+    significant_trends,
+)
+
+MAX_AUTO_STEPS = 5
+COST_PROBE_S = 30.0
+Progress = Callable[[str], None]
+
+
+@dataclass
+class Round:
+    """One diagnosis round: a model and its ranked candidates."""
+
+    model: FitResult
+    ranking: list[CandidateScore]
+    verdict: Verdict
+    fits: dict[str, FitResult]
+    discrepancies: list[str]
+
+
+@dataclass
+class Step:
+    index: int
+    model: str
+    added: str | None
+    error: float
+    delta_bic: float | None
+    note: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {"step": self.index, "model": self.model, "added": self.added,
+                "error": self.error, "delta_bic": self.delta_bic, "note": self.note}
+
+
+@dataclass
+class Diagnosis:
+    dataset: Dataset
+    rounds: list[Round]
+    steps: list[Step] = field(default_factory=list)
+    protocols: list[str] = field(default_factory=list)
+
+    @property
+    def first(self) -> Round:
+        return self.rounds[0]
+
+    @property
+    def final_model(self) -> FitResult:
+        return self.rounds[-1].model
+
+    def to_json(self, include_steps: bool) -> dict[str, Any]:
+        r0 = self.first
+        out: dict[str, Any] = {
+            "base": r0.model.choice.label(),
+            "baseline_error": r0.model.error,
+            "n_events": self.dataset.n_events,
+            "ranking": [s.to_json() for s in r0.ranking],
+            "verdict": r0.verdict.verdict,
+            "candidates": r0.verdict.candidates,
+            "suggest": r0.verdict.suggest,
+            "discrepancies": r0.discrepancies,
+            "protocols_present": self.protocols,
+            "notes": list(self.dataset.notes),
+        }
+        if include_steps:
+            out["steps"] = [s.to_json() for s in self.steps]
+            out["final_model"] = self.final_model.choice.label()
+            out["final_error"] = self.final_model.error
+        return out
+
+
+def explain(base_map: ResidualMap, cand_map: ResidualMap,
+            base_fit: FitResult, cand_fit: FitResult) -> str:
+    """What the candidate fixes, in words: preferably the covariate trend of the base model's
+    residual it removes (at least half of it), else the feature whose error falls most."""
+    cand_amp = {(t.feature, t.covariate): t.amplitude_z for t in cand_map.trends}
+    best: tuple[float, str] | None = None
+    for tr in significant_trends(base_map):
+        after = cand_amp.get((tr.feature, tr.covariate), 0.0)
+        frac = (tr.amplitude_z - after) / tr.amplitude_z
+        if frac < 0.5:
+            continue
+        cov = ("log " if tr.log else "") + COVARIATE_NAMES[tr.covariate]
+        text = f"{FEATURES[tr.feature].phrase} vs {cov} (trend {frac:.0%} removed)"
+        score = tr.amplitude_z * frac
+        if best is None or score > best[0]:
+            best = (score, text)
+    if best is not None:
+        return best[1]
+    feat_gain = [
+        (base_fit.feature_error[k] - cand_fit.feature_error.get(k, math.inf), k)
+        for k in base_fit.feature_error
+    ]
+    feat_gain = [g for g in feat_gain if math.isfinite(g[0]) and g[0] > 0]
+    if feat_gain:
+        _, k = max(feat_gain)
+        return (f"{FEATURES[k].phrase} (error {base_fit.feature_error[k]:.1f} -> "
+                f"{cand_fit.feature_error[k]:.1f})")
+    return "nothing (no residual structure removed)"
+
+
+def refine(dataset: Dataset, result: FitResult) -> FitResult:
+    """Re-identify a chosen model with a fresh Jacobian (for uncertainties and the next round)."""
+    free = free_params(result.choice, list(result.free))
+    return fit(dataset, result.choice, free, max_nfev=8, with_uncertainty=True)
+
+
+def cost_order(dataset: Dataset, model: FitResult, candidates: Sequence[str]) -> list[str]:
+    """Candidates, slowest to simulate first (so parallel workers finish together): each is timed
+    on the first COST_PROBE_S of the first run (long enough for the slow integration paths - a
+    nonlinear slip law, a state variable - to show over the fixed costs)."""
+    run = dataset.runs[0]
+    short = replace(run, drive=_truncate(run.drive, COST_PROBE_S))
+    costs = []
+    fns = fn_range(dataset)
+    for name in candidates:
+        t0 = time.perf_counter()
+        choice = model.choice.with_effect(name)
+        if physically_valid(choice, fns):
+            with contextlib.suppress(ValueError):
+                simulate_run(choice.build(), short)
+        costs.append(time.perf_counter() - t0)
+    order = sorted(range(len(candidates)), key=lambda i: -costs[i])
+    return [candidates[i] for i in order]
+
+
+def _truncate(drive: DriveProfile, t_end_s: float) -> DriveProfile:
+    t_end_s = min(t_end_s, float(drive.t_s[-1]))
+    keep = drive.t_s < t_end_s
+    t = np.append(drive.t_s[keep], t_end_s)
+    x = np.interp(t, drive.t_s, drive.x_stage_m)
+    f = np.interp(t, drive.t_s, drive.fn_N)
+    return DriveProfile(t, x, f, drive.t0_s)
+
+
+def run_round(
+    dataset: Dataset, model: FitResult, candidates: Sequence[str], *, workers: int | None,
+    scheduler: Any, progress: Progress | None, timeout_s: float = DEFAULT_TIMEOUT_S,
+    in_process: bool = False,
+) -> Round:
+    candidates = cost_order(dataset, model, candidates)
+    tasks = [CandidateTask(dataset, model, c) for c in candidates]
+
+    def done(i: int, res: FitResult | TaskFailed) -> None:
+        if not progress:
+            return
+        if isinstance(res, TaskFailed):
+            progress(f"  {candidates[i]}: fit failed: {res.message.splitlines()[0]}")
+        else:
+            progress(f"  fitted {candidates[i]}: error {res.error:.3g} "
+                     f"(base {model.error:.3g}; {res.n_evaluations} simulations, "
+                     f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s)")
+
+    outcomes = run_tasks(fit_candidate, tasks, workers=workers, scheduler=scheduler,
+                         on_done=done, timeout_s=timeout_s, in_process=in_process)
+    base_map = residual_map(dataset, evaluate(dataset, model.choice).score.comparisons)
+    scores: list[CandidateScore] = []
+    by_name: dict[str, FitResult] = {}
+    for name, res in zip(candidates, outcomes, strict=True):
+        if isinstance(res, TaskFailed):
+            failed = score_candidate(name, model.error, math.nan, dataset.n_events, 0)
+            failed.explains = f"fit failed: {res.message.splitlines()[0]}"
+            scores.append(failed)
+            continue
+        by_name[name] = res
+        sc = score_candidate(name, model.error, res.error, dataset.n_events,
+                             res.n_params - model.n_params)
+        if res.error < model.error:
+            cmap = residual_map(dataset, evaluate(dataset, res.choice).score.comparisons)
+            sc.explains = explain(base_map, cmap, model, res)
+        else:
+            sc.explains = "nothing (no improvement)"
+        sc.values = {k: v for k, v in res.choice.values.items() if k.startswith(name + ".")}
+        scores.append(sc)
+    ranked = rank(scores)
+    v = verdict(ranked, model.choice.effect_files, protocols_present(dataset))
+    return Round(model, ranked, v, by_name, discrepancies(base_map))
+
+
+def diagnose(
+    dataset: Dataset,
+    choice: ModelChoice,
+    *,
+    candidates: Sequence[str] | None = None,
+    auto: bool = False,
+    workers: int | None = None,
+    scheduler: Any = None,
+    progress: Progress | None = None,
+    baseline: FitResult | None = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    in_process: bool = False,
+) -> Diagnosis:
+    """Rank candidate effects for ``choice`` on ``dataset`` (see the module docstring)."""
+    say = progress or (lambda _msg: None)
+    pool = list(candidates) if candidates is not None else candidate_effects(choice)
+    say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")
+    model = baseline or identify_model(dataset, choice)
+    say(f"baseline error {model.error:.3g}; fitting {len(pool)} candidate effects")
+    diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
+    diag.steps.append(Step(0, model.choice.label(), None, model.error, None))
+    while True:
+        rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
+                        progress=progress, timeout_s=timeout_s, in_process=in_process)
+        diag.rounds.append(rnd)
+        if not auto or rnd.verdict.verdict == "none" or len(diag.steps) > MAX_AUTO_STEPS:
+            break
+        best = rnd.verdict.verdict if rnd.verdict.verdict != "indistinguishable" \
+            else rnd.verdict.candidates[0]
+        note = "" if rnd.verdict.verdict != "indistinguishable" else \
+            f"indistinguishable from {', '.join(rnd.verdict.candidates[1:])}"
+        best_score = next(s for s in rnd.ranking if s.effect == best)
+        say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
+        model = refine(dataset, rnd.fits[best])
+        diag.steps.append(Step(len(diag.steps), model.choice.label(), best, model.error,
+                               best_score.delta_bic, note))
+        pool = [c for c in pool if c != best]
+        if not pool:
+            diag.rounds.append(Round(model, [], Verdict("none", [], None), {}, []))
+            break
+    return diag

@@ -1,0 +1,246 @@
+"""The drive a measured run applied: stage position and normal force as a few straight segments.
+
+The model is simulated on each run's measured stage position and normal force (shared/spec/model.md,
+"Compare"). Feeding every noisy, quantised sample as a knot would make the model integrate sensor
+noise and run slowly, so both histories are simplified to piecewise-linear curves:
+
+1. knots by Douglas-Peucker splitting (Douglas & Peucker, Cartographica 10, 1973) with a tolerance
+   of a few noise RMS / quantisation steps (stage) or of 3 % of the load (normal force; a commanded
+   load changes by more, while the sensor noise and the small load swings a tilted frame makes at
+   each slip - the ``normal_coupling`` signature the workbench must still see - are smaller);
+2. each corner's time refined to where the straight lines fitted to its two neighbouring segments
+   meet (Douglas-Peucker puts a knot on a sample, and noise moves it by several samples: at a
+   velocity step of 20 um/s, 8 ms is 0.16 um of stage, three times the probe's event-to-event
+   scatter; the model would then see a drive the measurement never had);
+3. the knot values by a continuous piecewise-linear least-squares fit through all samples, so a
+   segment is as accurate as the average of its samples, not of its two end samples.
+
+The segments also give the covariates of the protocol: drive velocity, holds (stage at rest) and the
+motion start that opens the initial stage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.data import DataError, MeasuredRun
+from rigctl.workbench.signals import FloatArray, noise_sigma
+
+HOLD_VELOCITY_FRACTION = 0.02
+"""A segment whose speed is below this fraction of the run's fastest segment is a hold."""
+
+
+@dataclass(frozen=True)
+class DriveProfile:
+    """Piecewise-linear stage position and normal force of one run (times relative to t_s[0])."""
+
+    t_s: FloatArray
+    x_stage_m: FloatArray
+    fn_N: FloatArray
+    t0_s: float
+    """Absolute time of the run's first sample (the profile's t = 0)."""
+
+    @property
+    def velocity_m_per_s(self) -> FloatArray:
+        """Stage velocity of each segment (len = knots - 1)."""
+        out: FloatArray = np.diff(self.x_stage_m) / np.diff(self.t_s)
+        return out
+
+    @property
+    def is_hold(self) -> np.ndarray:
+        """True for segments where the stage rests."""
+        v = np.abs(self.velocity_m_per_s)
+        vmax = float(v.max()) if v.size else 0.0
+        return np.asarray(v <= HOLD_VELOCITY_FRACTION * vmax)
+
+    @property
+    def moving_velocities(self) -> FloatArray:
+        v = self.velocity_m_per_s
+        out: FloatArray = v[~self.is_hold]
+        return out
+
+    def segment_index(self, t_rel_s: FloatArray) -> np.ndarray:
+        """Index of the segment holding each (relative) time."""
+        idx = np.searchsorted(self.t_s, t_rel_s, side="right") - 1
+        return np.clip(idx, 0, self.t_s.shape[0] - 2)
+
+    def velocity_at(self, t_rel_s: FloatArray) -> FloatArray:
+        out: FloatArray = self.velocity_m_per_s[self.segment_index(t_rel_s)]
+        return out
+
+    def fn_at(self, t_rel_s: FloatArray) -> FloatArray:
+        out: FloatArray = np.interp(t_rel_s, self.t_s, self.fn_N)
+        return out
+
+    def motion_start_s(self) -> float:
+        """Relative time at which the stage first moves."""
+        moving = np.flatnonzero(~self.is_hold)
+        return float(self.t_s[moving[0]]) if moving.size else float(self.t_s[-1])
+
+    def hold_time_between(self, t_a: float, t_b: float) -> float:
+        """Seconds of stage rest inside [t_a, t_b] (relative times)."""
+        lo = np.clip(self.t_s[:-1], t_a, t_b)
+        hi = np.clip(self.t_s[1:], t_a, t_b)
+        return float(np.sum((hi - lo)[self.is_hold]))
+
+    def last_change_before(self, t_rel_s: float) -> float:
+        """Start of the segment holding ``t_rel_s`` (where the current loading began)."""
+        k = int(self.segment_index(np.array([t_rel_s]))[0])
+        return float(self.t_s[k])
+
+    def n_segments(self) -> int:
+        return int(self.t_s.shape[0] - 1)
+
+
+def _quantum(x: FloatArray) -> float:
+    """The smallest step of a quantised signal (0 if it is not visibly quantised)."""
+    d = np.abs(np.diff(x))
+    nz = d[d > 0]
+    if nz.size < 10 or nz.size > 0.5 * d.size:
+        return 0.0
+    return float(np.percentile(nz, 5))
+
+
+def douglas_peucker(t: FloatArray, y: FloatArray, tol: float, max_knots: int = 400) -> np.ndarray:
+    """Indices of the knots of a piecewise-linear approximation within ``tol`` of every sample."""
+    n = t.shape[0]
+    knots = {0, n - 1}
+    stack = [(0, n - 1)]
+    while stack and len(knots) < max_knots:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        tt = t[a : b + 1]
+        chord = y[a] + (y[b] - y[a]) * (tt - t[a]) / (t[b] - t[a])
+        dev = np.abs(y[a : b + 1] - chord)
+        k = int(np.argmax(dev))
+        if dev[k] > tol:
+            m = a + k
+            knots.add(m)
+            stack.append((a, m))
+            stack.append((m, b))
+    return np.array(sorted(knots), dtype=np.intp)
+
+
+def piecewise_linear_lsq(t: FloatArray, y: FloatArray, knot_t: FloatArray) -> FloatArray:
+    """Knot values of the continuous piecewise-linear least-squares fit (hat-function basis)."""
+    nk = knot_t.shape[0]
+    j = np.clip(np.searchsorted(knot_t, t, side="right") - 1, 0, nk - 2)
+    u = (t - knot_t[j]) / (knot_t[j + 1] - knot_t[j])
+    w0 = 1.0 - u
+    w1 = u
+    diag = np.bincount(j, w0 * w0, nk) + np.bincount(j + 1, w1 * w1, nk)
+    off = np.bincount(j, w0 * w1, nk - 1)
+    rhs = np.bincount(j, w0 * y, nk) + np.bincount(j + 1, w1 * y, nk)
+    a = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
+    a[np.diag_indices(nk)] += 1e-12 * (diag.max() + 1.0)  # knots with no samples nearby
+    out: FloatArray = np.linalg.solve(a, rhs)
+    return out
+
+
+REFINE_TRIM = 0.15
+"""Fraction of a segment's length left out at each end when its line is fitted for corner times."""
+REFINE_MIN_SAMPLES = 16
+REFINE_MAX_SHIFT = 0.1
+"""A corner moves by at most this fraction of its shorter neighbouring segment."""
+
+
+def _line(t: FloatArray, y: FloatArray, lo: float, hi: float) -> tuple[float, float] | None:
+    """Slope and intercept of the least-squares line through the samples of [lo, hi] (trimmed)."""
+    trim = REFINE_TRIM * (hi - lo)
+    i0, i1 = np.searchsorted(t, [lo + trim, hi - trim])
+    if i1 - i0 < REFINE_MIN_SAMPLES:
+        return None
+    tt = t[i0:i1]
+    tm = float(np.mean(tt))
+    dt = tt - tm
+    den = float(np.dot(dt, dt))
+    if den <= 0.0:
+        return None
+    slope = float(np.dot(dt, y[i0:i1])) / den
+    return slope, float(np.mean(y[i0:i1])) - slope * tm
+
+
+def refine_knot_times(t: FloatArray, y: FloatArray, knot_t: FloatArray) -> FloatArray:
+    """Interior knot times moved to the intersection of the lines of their two segments.
+
+    A corner is only moved when both segments hold enough samples, their slopes differ and the
+    intersection lies near the knot (short segments of a curved or stepped history stay as found).
+    """
+    out = knot_t.astype(np.float64).copy()
+    for i in range(1, knot_t.shape[0] - 1):
+        a, k, b = float(knot_t[i - 1]), float(knot_t[i]), float(knot_t[i + 1])
+        left = _line(t, y, a, k)
+        right = _line(t, y, k, b)
+        if left is None or right is None or left[0] == right[0]:
+            continue
+        tc = (right[1] - left[1]) / (left[0] - right[0])
+        if np.isfinite(tc) and abs(tc - k) <= REFINE_MAX_SHIFT * min(k - a, b - k):
+            out[i] = tc
+    return out
+
+
+def _flatten_groups(values: FloatArray, tol: float) -> FloatArray:
+    """Consecutive knot values that stay within ``tol`` of each other become their mean (exactly
+    constant inputs let the engine use its fast exact recurrence, and a held load is constant)."""
+    out = values.copy()
+    start = 0
+    for i in range(1, values.shape[0] + 1):
+        group = values[start:i + 1] if i < values.shape[0] else values[start:i]
+        if i == values.shape[0] or float(np.ptp(group)) > tol:
+            out[start:i] = float(np.mean(values[start:i]))
+            start = i
+    return out
+
+
+def _fit_channel(t: FloatArray, y: FloatArray, tol: float) -> tuple[FloatArray, FloatArray]:
+    idx = douglas_peucker(t, y, tol)
+    knot_t = refine_knot_times(t, y, t[idx])
+    return knot_t, piecewise_linear_lsq(t, y, knot_t)
+
+
+def _merge_close(knots: FloatArray, dt_min: float) -> FloatArray:
+    """Drop knots closer than ``dt_min`` to the previous one (the last knot is kept)."""
+    keep = [0]
+    for i in range(1, knots.shape[0] - 1):
+        if knots[i] - knots[keep[-1]] >= dt_min and knots[-1] - knots[i] >= dt_min:
+            keep.append(i)
+    keep.append(knots.shape[0] - 1)
+    out: FloatArray = knots[keep]
+    return out
+
+
+def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> DriveProfile:
+    """The simplified drive of ``run`` (raises DataError if the stage never moves)."""
+    t = run.t_s - run.t_s[0]
+    x = run.x_stage_m
+    fn = run.fn_N
+    q = _quantum(x)
+    x_tol = max(3.0 * q, 8.0 * noise_sigma(x), 1e-9)
+    fn_scale = float(np.median(np.abs(fn)))
+    fn_tol = max(8.0 * noise_sigma(fn), fn_tolerance_fraction * fn_scale, 1e-6)
+    xt, xv = _fit_channel(t, x, x_tol)
+    ft, fv = _fit_channel(t, fn, fn_tol)
+    # holds: the stage rests exactly
+    v = np.diff(xv) / np.diff(xt)
+    vmax = float(np.max(np.abs(v))) if v.size else 0.0
+    for k in np.flatnonzero(np.abs(v) <= HOLD_VELOCITY_FRACTION * vmax):
+        mean = 0.5 * (xv[k] + xv[k + 1])
+        xv[k] = xv[k + 1] = mean
+    fv = _flatten_groups(fv, fn_tol)
+    dt_min = 5.0 * float(np.median(np.diff(t)))
+    knots = _merge_close(np.union1d(xt, ft), dt_min)
+    xk = np.interp(knots, xt, xv)
+    fk = np.clip(np.interp(knots, ft, fv), 0.0, None)
+    prof = DriveProfile(knots, xk, fk, float(run.t_s[0]))
+    travel = float(np.max(x) - np.min(x))
+    if travel <= 4.0 * x_tol or prof.moving_velocities.size == 0:
+        raise DataError(
+            f"the stage does not move (travel {travel * 1e6:.3g} um): no tangential loading to "
+            "compare against",
+            path=run.source or None,
+            column="x_stage_m",
+        )
+    return prof

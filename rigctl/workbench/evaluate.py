@@ -1,0 +1,54 @@
+"""Simulate a model on every run of a campaign and read its slips like the measurement's.
+
+Each run is simulated on its own simplified drive (:mod:`rigctl.workbench.drive_profile`) at the
+run's own sample rate with :class:`rigctl.model.Simulator`, then read with the run's measured
+settings (:mod:`rigctl.workbench.features`), so model and measurement go through the same eyes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rigctl.model import Drive, ModelSpec, SimResult, Simulator
+from rigctl.workbench.dataset import Dataset, PreparedRun
+from rigctl.workbench.features import EventTable, extract_events
+from rigctl.workbench.metrics import Score, score
+from rigctl.workbench.model_choice import ModelChoice
+
+
+def model_drive(run: PreparedRun) -> Drive:
+    d = run.drive
+    return Drive(d.t_s, d.x_stage_m, d.fn_N)
+
+
+def simulate_run(spec: ModelSpec, run: PreparedRun) -> SimResult:
+    sim = Simulator(spec, sample_rate_hz=run.sample_rate_hz)
+    return sim.run(model_drive(run), record_elements=False)
+
+
+def read_result(res: SimResult, run: PreparedRun) -> EventTable:
+    return extract_events(
+        res.t_s, res.ft_N, res.d1_m - res.d2_m, res.fn_N, run.drive, run.read
+    )
+
+
+@dataclass
+class Evaluation:
+    score: Score
+    events: list[EventTable]
+    results: list[SimResult] | None
+
+
+def evaluate(
+    dataset: Dataset, model: ModelChoice | ModelSpec, keep_results: bool = False
+) -> Evaluation:
+    """Simulate and score ``model`` on ``dataset``."""
+    spec = model.build() if isinstance(model, ModelChoice) else model
+    events: list[EventTable] = []
+    results: list[SimResult] = []
+    for run in dataset.runs:
+        res = simulate_run(spec, run)
+        events.append(read_result(res, run))
+        if keep_results:
+            results.append(res)
+    return Evaluation(score(dataset, events), events, results if keep_results else None)

@@ -1,0 +1,113 @@
+"""Slip events found in a sampled tangential-force record.
+
+Why not single samples: the rig samples at 1024 Hz while a slip lasts under a millisecond and the
+specimen then rings at about 1 kHz (shared/spec/model.md), so the samples right after a slip alias
+the ringing into a slow-looking, several-newton oscillation. A slip is therefore detected as a *drop*
+of the tangential force by more than a threshold within a short window (a few ms), and every drop that
+follows within the merge gap (the aliased ringing, even where it swings through zero) belongs to the
+same event, whose direction is that of its first drop. The threshold is
+``max(k * noise RMS, f * force scale)`` and is fixed per campaign from the measured data, so model
+and measurement are read with the same eyes. Drops are counted in the direction of loading
+(|Ft| falls), so a reversed run works too. A drop that is only a few thresholds large must come with
+a forward jump of the interface displacement delta (a real slip moves the interface; an unloading does
+not) when delta carries a signal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.workbench.signals import FloatArray, noise_sigma, sliding_extreme
+
+
+@dataclass(frozen=True)
+class DetectionSettings:
+    """How slips are told from noise; thresholds in newtons, windows in seconds."""
+
+    threshold_N: float
+    drop_window_s: float = 0.006
+    merge_gap_s: float = 0.03
+    confirm_factor: float = 4.0
+    """Drops below confirm_factor * threshold need a forward delta jump."""
+
+    @staticmethod
+    def from_signal(
+        ft_N: FloatArray, k_sigma: float = 12.0, frac_of_scale: float = 0.004
+    ) -> DetectionSettings:
+        """Threshold from a measured force record: k noise RMS or a fraction of the force scale."""
+        sigma = noise_sigma(ft_N)
+        scale = float(np.percentile(np.abs(ft_N), 99.0)) if ft_N.size else 0.0
+        return DetectionSettings(threshold_N=max(k_sigma * sigma, frac_of_scale * scale, 1e-9))
+
+
+@dataclass(frozen=True)
+class SlipIndices:
+    """Detected slips of one record, as sample indices (all arrays the same length)."""
+
+    i_peak: np.ndarray
+    """Last sample at the peak, just before the force falls."""
+    i_end: np.ndarray
+    """Last sample of the event's drops (the aliased ringing included)."""
+    sign: np.ndarray
+    """+1 for slips under positive Ft, -1 under negative Ft."""
+
+    @property
+    def n(self) -> int:
+        return int(self.i_peak.shape[0])
+
+
+def detect_slips(
+    t_s: FloatArray,
+    ft_N: FloatArray,
+    delta_m: FloatArray | None,
+    settings: DetectionSettings,
+) -> SlipIndices:
+    """Find slip events in a force record (see the module docstring)."""
+    n = ft_N.shape[0]
+    empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
+    if n < 8:
+        return empty
+    dt = float(np.median(np.diff(t_s)))
+    w = max(2, round(settings.drop_window_s / dt))
+    gap = max(w + 1, round(settings.merge_gap_s / dt))
+    thr = settings.threshold_N
+    fwd_min = sliding_extreme(ft_N, w, "min")
+    fwd_max = sliding_extreme(ft_N, w, "max")
+    sign = np.sign(ft_N)
+    drop = np.where(sign > 0, ft_N - fwd_min, fwd_max - ft_N)
+    cand = np.flatnonzero((drop > thr) & (np.abs(ft_N) > thr))
+    if cand.size == 0:
+        return empty
+    breaks = np.flatnonzero(np.diff(cand) > gap) + 1
+    clusters = np.split(cand, breaks)
+    d_sigma = noise_sigma(delta_m) if delta_m is not None else 0.0
+    d_informative = delta_m is not None and float(np.ptp(delta_m)) > 20.0 * d_sigma
+    peaks: list[int] = []
+    ends: list[int] = []
+    signs: list[int] = []
+    for c in clusters:
+        c0, c1 = int(c[0]), int(c[-1])
+        s = int(sign[c0])
+        i_end = min(c1 + w, n - 1)
+        seg = s * ft_N[c0 : min(c0 + w + 2, n)]
+        # the peak is the last sample before the first clear one-sample fall (under noise the
+        # highest sample may sit a few samples early); else the highest sample
+        size_est = float(np.max(seg) - np.min(s * ft_N[c0 : i_end + 1]))
+        falls = np.flatnonzero(seg[:-1] - seg[1:] > max(0.5 * thr, 0.1 * size_est))
+        i_pk = c0 + int(falls[0]) if falls.size else c0 + int(np.argmax(seg))
+        size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
+        if size <= thr:
+            continue
+        if size < settings.confirm_factor * thr and d_informative and delta_m is not None:
+            before = float(np.median(delta_m[max(0, i_pk - w) : i_pk + 1]))
+            after = float(np.median(delta_m[i_end : min(n, i_end + gap)]))
+            if s * (after - before) <= 3.0 * d_sigma:
+                continue
+        peaks.append(i_pk)
+        ends.append(i_end)
+        signs.append(s)
+    return SlipIndices(
+        np.array(peaks, dtype=np.intp), np.array(ends, dtype=np.intp), np.array(signs, np.int8)
+    )

@@ -1,0 +1,289 @@
+"""Identification strategies: the model as given (baseline) and the model plus one candidate effect.
+
+* :func:`identify_model` fits every ``identify`` parameter of a model, starting from the better of
+  its current values and the data-informed guess (:mod:`rigctl.workbench.guess`).
+* :func:`fit_candidate` adds one effect to an identified model and fits the effect's parameters
+  together with the model's. Global where needed, in three stages:
+
+  1. scan: the effect's identified parameters on a grid of 0.1, 0.3, 1 and 3 times their typical
+     deviation from "off" (-1 ... 3 where the bounds allow both signs); at each point the base
+     friction and stiffness levels are re-read from the data (the guess of
+     :mod:`rigctl.workbench.guess`, since an effect can shift them far: aging raises every peak);
+  2. the points are ranked by the cost a Gauss-Newton step of the base parameters would reach
+     (with a Jacobian taken with the effect on), and the best four get two such steps;
+  3. bounded least squares (:mod:`rigctl.workbench.identify`) from the best two, the better kept.
+
+  If nothing beats the base model the effect is reported switched off. Everything a fit needs is
+  picklable, so candidates fit in parallel processes or on a Dask cluster
+  (:mod:`rigctl.workbench.parallel`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.model import ParameterError
+from rigctl.workbench.dataset import Dataset
+from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.guess import initial_guess
+from rigctl.workbench.identify import (
+    FitResult,
+    FreeParam,
+    HybridJacobian,
+    Objective,
+    fit,
+    fn_range,
+    free_params,
+    physically_valid,
+)
+from rigctl.workbench.model_choice import ModelChoice, effect_class
+
+BASELINE_MAX_NFEV = 24
+CANDIDATE_MAX_NFEV = 10
+N_STARTS = 2
+GN_SCAN_ITERATIONS = 2
+SCAN_FACTORS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0)
+SIGNED_SCAN_FACTORS: tuple[float, ...] = (-1.0, -0.2, 0.2, 1.0, 3.0)
+MAX_SCAN_POINTS = 25
+
+
+def identify_model(
+    dataset: Dataset, choice: ModelChoice, with_uncertainty: bool = True,
+    max_nfev: int = BASELINE_MAX_NFEV,
+) -> FitResult:
+    """Fit all identifiable parameters of ``choice`` on ``dataset``."""
+    free = free_params(choice)
+    fns = fn_range(dataset)
+    if not physically_valid(choice, fns):
+        raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
+    guess = initial_guess(dataset, choice, free)
+    e_now = evaluate(dataset, choice).score.error
+    start: dict[str, float] = {}
+    if physically_valid(choice.with_values(guess), fns):
+        e_guess = evaluate(dataset, choice.with_values(guess)).score.error
+        start = guess if e_guess <= e_now else {}
+    return fit(dataset, choice, free, start=start, max_nfev=max_nfev,
+               with_uncertainty=with_uncertainty)
+
+
+def _scan(
+    dataset: Dataset, choice: ModelChoice, base_free: list[FreeParam], J_base: np.ndarray | None,
+    points: list[dict[str, float]], n_check: int = 4, n_keep: int = 1,
+) -> tuple[list[tuple[float, dict[str, float]]], np.ndarray | None]:
+    """Best start among ``points``.
+
+    At each point the base parameters would take a Gauss-Newton step with the base Jacobian to
+    absorb what the effect shifts on average (e.g. a mean friction rise); the points are ranked by
+    the cost that step predicts (|r - J J^+ r|^2, no extra simulation), and the best ``n_check``
+    are simulated after the step. Returns the ``n_keep`` best starts (cost, values), best first,
+    from distinct scan points, and the base Jacobian taken with the effect on (None if none was
+    taken).
+    """
+    fns = fn_range(dataset)
+    lo = np.array([fp.u_bounds[0] for fp in base_free])
+    hi = np.array([fp.u_bounds[1] for fp in base_free])
+    evaluated: list[tuple[dict[str, float], np.ndarray]] = []
+    for raw_pt in points:
+        if not physically_valid(choice.with_values(raw_pt), fns):
+            continue
+        # the friction and stiffness levels re-read from the data with the effect on (an effect
+        # may shift them far: aging raises every peak), as for the base model's first guess
+        try:
+            pt = {**raw_pt, **initial_guess(dataset, choice.with_values(raw_pt), base_free)}
+        except ValueError:
+            continue
+        if not physically_valid(choice.with_values(pt), fns):
+            pt = dict(raw_pt)
+            if not physically_valid(choice.with_values(pt), fns):
+                continue
+        try:
+            vec = evaluate(dataset, choice.with_values(pt)).score.vector
+        except ValueError:
+            continue
+        if np.all(np.isfinite(vec)):
+            evaluated.append((pt, vec))
+    if not evaluated:
+        return [(np.inf, dict(points[0]))], None
+    ranked = _rank_points(evaluated, J_base)
+    J_effect_on: np.ndarray | None = None
+    if J_base is not None and base_free and len(evaluated) > 1:
+        # the base Jacobian was taken with the effect off; take one afresh with the effect on at
+        # the most promising point and rank again with it
+        top = ranked[0][2]
+        obj = Objective(dataset, choice.with_values(top), base_free)
+        J_on = HybridJacobian(obj, []).full(np.array([fp.to_u(top[fp.name]) for fp in base_free]))
+        if np.all(np.isfinite(J_on)):
+            J_base = J_effect_on = J_on
+            ranked = _rank_points(evaluated, J_base)
+    starts: list[tuple[float, dict[str, float]]] = []
+    for _, e_raw, pt, gn_step in ranked[:n_check]:
+        best_here: tuple[float, dict[str, float]] = (e_raw, dict(pt))
+        if gn_step is not None and J_base is not None:
+            u_pt = np.array([fp.to_u(pt[fp.name]) for fp in base_free])
+            best_here = _gauss_newton_base(dataset, choice, base_free, J_base, pt, u_pt, gn_step,
+                                           (lo, hi), fns, best_here)
+        starts.append(best_here)
+    starts.sort(key=lambda x: x[0])
+    return starts[:n_keep], J_effect_on
+
+
+def _rank_points(
+    evaluated: list[tuple[dict[str, float], np.ndarray]], J: np.ndarray | None,
+) -> list[tuple[float, float, dict[str, float], np.ndarray | None]]:
+    """(predicted cost after a Gauss-Newton step, raw cost, point, step), best first."""
+    out: list[tuple[float, float, dict[str, float], np.ndarray | None]] = []
+    pinv = np.linalg.pinv(J, rcond=1e-8) if J is not None and J.shape[1] else None
+    for pt, vec in evaluated:
+        raw = float(vec @ vec)
+        if pinv is not None and J is not None:
+            step = -pinv @ vec
+            pred = vec + J @ step
+            out.append((float(pred @ pred), raw, pt, step))
+        else:
+            out.append((raw, raw, pt, None))
+    out.sort(key=lambda x: x[0])
+    return out
+
+
+def _gauss_newton_base(
+    dataset: Dataset, choice: ModelChoice, base_free: list[FreeParam], J: np.ndarray,
+    pt: dict[str, float], u_b: np.ndarray, step: np.ndarray,
+    bounds: tuple[np.ndarray, np.ndarray], fns: tuple[float, float],
+    best: tuple[float, dict[str, float]], iterations: int = GN_SCAN_ITERATIONS,
+) -> tuple[float, dict[str, float]]:
+    """A few Gauss-Newton steps of the base parameters at a scan point, the Jacobian corrected
+    after each by a Broyden rank-one update (one simulation per step)."""
+    u = u_b.copy()
+    vec_prev = evaluate(dataset, choice.with_values(pt)).score.vector
+    J = J.copy()
+    for _ in range(iterations):
+        u_new = np.clip(u + step, bounds[0], bounds[1])
+        moved = {fp.name: fp.to_p(float(x)) for fp, x in zip(base_free, u_new, strict=True)}
+        values = {**pt, **moved}
+        if not physically_valid(choice.with_values(values), fns):
+            break
+        try:
+            vec = evaluate(dataset, choice.with_values(values)).score.vector
+        except ValueError:
+            break
+        cost = float(vec @ vec)
+        if cost < best[0]:
+            best = (cost, values)
+        du = u_new - u
+        nrm = float(du @ du)
+        if nrm > 0:
+            J = J + np.outer(vec - vec_prev - J @ du, du) / nrm
+        u, vec_prev = u_new, vec
+        step, *_ = np.linalg.lstsq(J, -vec, rcond=1e-8)
+    return best
+
+
+def _scan_points(fps: list[FreeParam], defaults: dict[str, float],
+                 offs: dict[str, float]) -> list[dict[str, float]]:
+    """Start points: each parameter at its off value plus a factor times its typical deviation
+    (default - off); a full grid when it stays within MAX_SCAN_POINTS, else joint factors plus
+    one-parameter-at-a-time variations."""
+    factors: dict[str, tuple[float, ...]] = {}
+    typical: dict[str, float] = {}
+    for fp in fps:
+        off = offs.get(fp.name, 0.0)
+        typ = defaults[fp.name] - off
+        if typ == 0.0:
+            typ = 0.05 * (fp.upper - fp.lower)
+        typical[fp.name] = typ
+        signed = fp.lower < off < fp.upper and fp.lower < 0.0
+        factors[fp.name] = SIGNED_SCAN_FACTORS if signed else SCAN_FACTORS
+
+    def point(fs: dict[str, float]) -> dict[str, float]:
+        return {
+            fp.name: float(np.clip(offs.get(fp.name, 0.0) + fs[fp.name] * typical[fp.name],
+                                   fp.lower, fp.upper))
+            for fp in fps
+        }
+
+    n_grid = int(np.prod([len(f) for f in factors.values()])) if fps else 0
+    if n_grid <= MAX_SCAN_POINTS:
+        combos = itertools.product(*(factors[fp.name] for fp in fps))
+        return [point(dict(zip([fp.name for fp in fps], c, strict=True))) for c in combos]
+    pts = []
+    joint = sorted(set().union(*[set(f) for f in factors.values()]))
+    for f in joint:
+        pts.append(point({fp.name: f for fp in fps}))
+    for fp in fps:
+        for f in factors[fp.name]:
+            fs = {q.name: 1.0 for q in fps}
+            fs[fp.name] = f
+            pts.append(point(fs))
+    return pts
+
+
+@dataclass(frozen=True)
+class CandidateTask:
+    """One candidate fit, as data (sent to a worker)."""
+
+    dataset: Dataset
+    base: FitResult
+    effect: str
+
+
+def fit_candidate(task: CandidateTask, with_uncertainty: bool = False) -> FitResult:
+    """Identify ``base`` + ``effect`` (base parameters re-fitted together with the effect's)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = _fit_candidate(task, with_uncertainty)
+    result.elapsed_s = time.perf_counter() - t0
+    result.cpu_s = time.process_time() - c0
+    return result
+
+
+def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
+    dataset, base, effect = task.dataset, task.base, task.effect
+    choice = base.choice.with_effect(effect)
+    table = {p.name: p for p in choice.parameter_table()}
+    cls = effect_class(effect, choice.effect_files)
+    prefix = f"{effect}."
+    eff_names = [n for n, p in table.items() if n.startswith(prefix) and p.identify]
+    eff_free = free_params(choice, eff_names)
+    defaults = {n: table[n].value for n in eff_names}
+    offs: dict[str, float] = {}
+    if cls is not None:
+        base_vals = {n: p.value for n, p in table.items() if "." not in n}
+        try:
+            offs = {prefix + k: v for k, v in cls().off_values(base_vals).items()}
+        except NotImplementedError:
+            offs = {}
+    base_free = free_params(choice, list(base.free))
+    free = base_free + eff_free
+    J_base = base.jacobian if base.jacobian is not None and \
+        base.jacobian.shape[1] == len(base_free) else None
+    # the scan leaves out the off point: effects switch the engine to another integration path
+    # when they turn on, so derivatives taken right at "off" can mislead; the fit is compared with
+    # the base model (the effect off) at the end instead
+    starts, J_on = _scan(dataset, choice, base_free, J_base,
+                         _scan_points(eff_free, defaults, offs), n_keep=N_STARTS)
+    # the effect's columns are differenced at every step; the base columns start from the
+    # Jacobian the scan took with the effect on (an effect can change how the base parameters
+    # act: a new slip law, a filtered force) and are then updated by Broyden
+    fresh = list(range(len(base_free), len(free)))
+    init = None
+    if J_on is not None:
+        init = np.hstack([J_on, np.zeros((J_on.shape[0], len(eff_free)))])
+    fits = [
+        fit(dataset, choice, free, start=start, fresh_columns=fresh, initial_jacobian=init,
+            max_nfev=CANDIDATE_MAX_NFEV, with_uncertainty=with_uncertainty)
+        for _, start in starts
+    ]
+    result = min(fits, key=lambda r: r.error)
+    result.n_evaluations = sum(r.n_evaluations for r in fits)
+    if result.error > base.error and offs:
+        # nothing better than leaving the effect off: report the base model with the effect off
+        off_choice = choice.with_values({**dict(base.choice.values), **offs})
+        result = FitResult(
+            choice=off_choice, error=base.error, feature_error=dict(base.feature_error),
+            free=result.free, n_evaluations=result.n_evaluations,
+            message="the effect does not improve the fit; reported switched off",
+        )
+    return result

@@ -1,0 +1,349 @@
+"""Parameter identification: bounded least squares on the event-aware residual vector.
+
+The residual vector is the one whose squared norm is the error E^2 times the number of features
+(:mod:`rigctl.workbench.metrics`), so identification minimises exactly the reported error. Solver:
+``scipy.optimize.least_squares`` (trust-region reflective, bounds; Branch, Coleman & Li, SIAM J.
+Sci. Comput. 21, 1999) in internal coordinates: ln(p) for parameters whose bounds are positive and
+span more than a factor 20, p / s otherwise (s the typical size).
+
+Derivatives are forward differences of the simulated features (the event-driven engine makes a
+simulation cheap). Each parameter's step adapts so that the residual moves by 2-20 scatter units:
+above the features' sampling-phase jitter, within the linear range. :class:`HybridJacobian`
+differences chosen columns at every step and keeps the others current by Broyden rank-one updates
+(Broyden, Math. Comp. 19, 1965); candidate fits use it for the base parameters
+(:mod:`rigctl.workbench.fitting`).
+
+Uncertainty: the covariance s^2 (J^T J)^-1 of the linearised problem, s^2 = |r|^2 / (m - p) (the
+standard Gauss-Newton estimate, e.g. Seber & Wild, *Nonlinear Regression*, sec. 2.1), mapped to
+parameter units. A parameter is flagged *undetermined* when its 1-sigma range exceeds 30 % (log
+parameters) or half its value and 5 % of its bounds (linear ones), or when the data do not move the
+residual at all.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from rigctl.model import ParameterError, ParamInfo
+from rigctl.workbench.dataset import Dataset
+from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.signals import FloatArray
+
+FD_STEP = 0.05
+FD_STEP_MIN = 1e-4
+FD_STEP_MAX = 0.3
+FD_CHANGE_MIN = 2.0
+FD_CHANGE_MAX = 20.0
+FAILED_RESIDUAL = 1e3
+
+
+@dataclass(frozen=True)
+class FreeParam:
+    """A fitted parameter and its internal coordinate u."""
+
+    name: str
+    lower: float
+    upper: float
+    log: bool
+    scale: float
+
+    @staticmethod
+    def from_info(info: ParamInfo) -> FreeParam:
+        log = info.lower > 0.0 and info.upper / info.lower > 20.0
+        scale = max(abs(info.value), 0.01 * (info.upper - info.lower), 1e-300)
+        return FreeParam(info.name, info.lower, info.upper, log, scale)
+
+    def to_u(self, p: float) -> float:
+        return math.log(p) if self.log else p / self.scale
+
+    def to_p(self, u: float) -> float:
+        p = math.exp(u) if self.log else u * self.scale
+        return min(max(p, self.lower), self.upper)
+
+    @property
+    def u_bounds(self) -> tuple[float, float]:
+        return self.to_u(self.lower), self.to_u(self.upper)
+
+    def dp_du(self, p: float) -> float:
+        return p if self.log else self.scale
+
+
+@dataclass
+class FitResult:
+    """An identified model and how well the data determine it."""
+
+    choice: ModelChoice
+    error: float
+    feature_error: dict[str, float]
+    free: tuple[str, ...]
+    sigma: dict[str, float] = field(default_factory=dict)
+    undetermined: list[str] = field(default_factory=list)
+    n_evaluations: int = 0
+    message: str = ""
+    jacobian: FloatArray | None = None
+    """d(residual)/du at the solution (columns in the order of ``free``)."""
+    elapsed_s: float = 0.0
+    cpu_s: float = 0.0
+    """Wall and CPU seconds of the fit (candidate fits; on a busy machine wall > CPU)."""
+
+    @property
+    def n_params(self) -> int:
+        return len(self.free)
+
+
+def physically_valid(choice: ModelChoice, fn_range_N: tuple[float, float] = (0.0, 0.0)) -> bool:
+    """Kinetic friction stays below static friction over the campaign's normal forces.
+
+    Checked with the engine's own friction laws (``rigctl.model.friction_laws``, so load-dependent
+    friction and plug-ins acting on the coefficients are included) at the lowest and highest Fn,
+    for the initial and the stable stage, and for ``wear`` at its asymptote. Stick-slip needs it, and
+    the engine does not finish a run without it (reported to its owner), so such points count as
+    failed evaluations.
+    """
+    v = choice.values
+    if "mu_k" in v and any(v["mu_k"] >= v[n] for n in ("mu_s", "mu_smax") if n in v):
+        return False
+    if ("wear.dmu_s" in v and "mu_k" in v and "mu_s" in v
+            and v["mu_k"] + v.get("wear.dmu_k", 0.0) >= v["mu_s"] + v["wear.dmu_s"]):
+        return False
+    try:
+        from rigctl.model.friction_laws import mu_kinetic, mu_static
+
+        cp = choice.build().core_setup().cp
+        for fn in {max(fn_range_N[0], 1e-3), max(fn_range_N[1], 1e-3)}:
+            mk = mu_kinetic(cp, fn, 0.0, 0.0)
+            if mk > mu_static(cp, 1, fn, 0.0) or mk > mu_static(cp, 0, fn, 0.0):
+                return False
+    except (ImportError, AttributeError, TypeError):
+        return True
+    return True
+
+
+class Objective:
+    """Residual vector of a model on a dataset as a function of the internal coordinates."""
+
+    def __init__(self, dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam]) -> None:
+        self.dataset = dataset
+        self.fn_range = fn_range(dataset)
+        self.choice = choice
+        self.free = list(free)
+        self.n_evaluations = 0
+        self._cache: dict[bytes, FloatArray] = {}
+        self.best_u: FloatArray | None = None
+        self.best_cost = math.inf
+
+    def values(self, u: FloatArray) -> dict[str, float]:
+        return {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, u, strict=True)}
+
+    def __call__(self, u: FloatArray) -> FloatArray:
+        key = np.asarray(u, dtype=np.float64).tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        self.n_evaluations += 1
+        candidate = self.choice.with_values(self.values(u))
+        try:
+            if not physically_valid(candidate, self.fn_range):
+                raise ParameterError("mu_k >= mu_s")
+            ev = evaluate(self.dataset, candidate)
+            vec = ev.score.vector
+            if not np.all(np.isfinite(vec)):
+                vec = np.where(np.isfinite(vec), vec, FAILED_RESIDUAL)
+        except ParameterError:
+            vec = None
+        if vec is None:
+            n = self._length()
+            vec = np.full(n, FAILED_RESIDUAL / math.sqrt(max(n, 1)))
+        if len(self._cache) > 64:
+            self._cache.clear()
+        self._cache[key] = vec
+        cost = float(vec @ vec)
+        if cost < self.best_cost:
+            self.best_cost = cost
+            self.best_u = np.array(u, dtype=np.float64)
+        return vec
+
+    def _length(self) -> int:
+        for v in self._cache.values():
+            return int(v.shape[0])
+        return int(evaluate(self.dataset, self.choice).score.vector.shape[0])
+
+
+def fn_range(dataset: Dataset) -> tuple[float, float]:
+    """Lowest and highest normal force the campaign's drives apply."""
+    lo = min(float(np.min(r.drive.fn_N)) for r in dataset.runs)
+    hi = max(float(np.max(r.drive.fn_N)) for r in dataset.runs)
+    return lo, hi
+
+
+class HybridJacobian:
+    """Forward differences for the 'fresh' columns, Broyden updates for the others."""
+
+    def __init__(
+        self,
+        objective: Objective,
+        fresh: Sequence[int],
+        initial: FloatArray | None = None,
+    ) -> None:
+        self.obj = objective
+        self.fresh = list(fresh)
+        self.J = initial
+        self.refresh_first = initial is None
+        self.steps: dict[int, float] = {}
+        self._last: tuple[FloatArray, FloatArray] | None = None
+
+    def _column(self, u: FloatArray, f0: FloatArray, j: int) -> FloatArray:
+        """Forward difference with a step adapted per parameter: the residual change is kept
+        between FD_CHANGE_MIN and FD_CHANGE_MAX (in units of scatter), large enough to rise above
+        the sampling-phase jitter of the features and small enough to stay linear; the step found
+        is remembered for the next call."""
+        lo, hi = self.obj.free[j].u_bounds
+        size = self.steps.get(j, FD_STEP)
+        col = np.zeros_like(f0)
+        for _ in range(3):
+            h = size if u[j] + size <= hi else -size
+            if u[j] + h < lo:
+                h = 0.5 * (hi - lo)
+            uj = u.copy()
+            uj[j] += h
+            diff = self.obj(uj) - f0
+            col = diff / h
+            change = float(np.linalg.norm(diff))
+            if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
+                size = max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
+            elif 0.0 < change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX:
+                size = min(abs(h) * FD_CHANGE_MIN / change, FD_STEP_MAX)
+            else:
+                break
+        self.steps[j] = size
+        return col
+
+    def __call__(self, u: FloatArray) -> FloatArray:
+        u = np.asarray(u, dtype=np.float64)
+        f0 = self.obj(u)
+        n = u.shape[0]
+        if self.J is None or (self._last is None and self.refresh_first):
+            self.J = np.zeros((f0.shape[0], n))
+            cols = list(range(n))
+        else:
+            if self._last is not None:
+                du = u - self._last[0]
+                df = f0 - self._last[1]
+                nrm = float(du @ du)
+                if nrm > 0:
+                    self.J = self.J + np.outer(df - self.J @ du, du) / nrm
+            cols = self.fresh
+        for j in cols:
+            self.J[:, j] = self._column(u, f0, j)
+        self._last = (u.copy(), f0.copy())
+        return self.J.copy()
+
+    def full(self, u: FloatArray) -> FloatArray:
+        """A fresh forward-difference Jacobian (all columns)."""
+        u = np.asarray(u, dtype=np.float64)
+        f0 = self.obj(u)
+        J = np.zeros((f0.shape[0], u.shape[0]))
+        for j in range(u.shape[0]):
+            J[:, j] = self._column(u, f0, j)
+        return J
+
+
+def free_params(choice: ModelChoice, names: Sequence[str] | None = None) -> list[FreeParam]:
+    """The parameters to fit: ``names``, or every parameter marked ``identify``."""
+    table = {p.name: p for p in choice.parameter_table()}
+    if names is None:
+        names = [p.name for p in table.values() if p.identify]
+    out = []
+    for name in names:
+        if name not in table:
+            raise ParameterError(f"cannot fit '{name}': not a parameter of {choice.label()}")
+        out.append(FreeParam.from_info(table[name]))
+    return out
+
+
+def uncertainties(
+    free: Sequence[FreeParam], values: Mapping[str, float], J: FloatArray, residual: FloatArray
+) -> tuple[dict[str, float], list[str]]:
+    """1-sigma uncertainties in parameter units and the parameters the data cannot determine."""
+    m, p = J.shape
+    s2 = float(residual @ residual) / max(m - p, 1)
+    col_norm = np.linalg.norm(J, axis=0)
+    cov = np.linalg.pinv(J.T @ J, rcond=1e-10) * s2
+    sig_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    sigma: dict[str, float] = {}
+    undetermined: list[str] = []
+    tiny = 1e-9 * (float(col_norm.max()) if col_norm.size else 1.0)
+    for j, fp in enumerate(free):
+        v = values[fp.name]
+        sp = float(sig_u[j] * fp.dp_du(v))
+        sigma[fp.name] = sp
+        if col_norm[j] <= tiny:
+            undetermined.append(fp.name)
+        elif fp.log:
+            if sig_u[j] > 0.3:
+                undetermined.append(fp.name)
+        elif sp > 0.5 * abs(v) and sp > 0.05 * (fp.upper - fp.lower):
+            undetermined.append(fp.name)
+    return sigma, undetermined
+
+
+ProgressFn = Callable[[str], None]
+
+
+def fit(
+    dataset: Dataset,
+    choice: ModelChoice,
+    free: Sequence[FreeParam],
+    *,
+    start: Mapping[str, float] | None = None,
+    initial_jacobian: FloatArray | None = None,
+    fresh_columns: Sequence[int] | None = None,
+    max_nfev: int = 20,
+    with_uncertainty: bool = False,
+) -> FitResult:
+    """Least-squares fit of ``free`` (others as in ``choice``), from ``start`` or the choice."""
+    current = {p.name: p.value for p in choice.parameter_table()}
+    if start:
+        current.update(start)
+    obj = Objective(dataset, choice, free)
+    u0 = np.array([fp.to_u(current[fp.name]) for fp in free])
+    bounds = (np.array([fp.u_bounds[0] for fp in free]), np.array([fp.u_bounds[1] for fp in free]))
+    u0 = np.clip(u0, bounds[0], bounds[1])
+    fresh = list(range(len(free))) if fresh_columns is None else list(fresh_columns)
+    jac = HybridJacobian(obj, fresh, initial_jacobian)
+    message = "no free parameters"
+    if free:
+        sol = least_squares(
+            obj, u0, jac=jac, bounds=bounds, method="trf", x_scale=1.0, max_nfev=max_nfev,
+            ftol=1e-4, xtol=1e-4, gtol=1e-6,
+        )
+        u = sol.x if obj.best_u is None or sol.cost * 2 <= obj.best_cost else obj.best_u
+        message = str(sol.message)
+    else:
+        u = u0
+    values = obj.values(u)
+    fitted = choice.with_values(values)
+    ev = evaluate(dataset, fitted)
+    J = jac.J
+    sigma: dict[str, float] = {}
+    undetermined: list[str] = []
+    if free and with_uncertainty:
+        J = jac.full(u)
+        sigma, undetermined = uncertainties(free, values, J, ev.score.vector)
+    return FitResult(
+        choice=fitted,
+        error=ev.score.error,
+        feature_error=ev.score.feature_error,
+        free=tuple(fp.name for fp in free),
+        sigma=sigma,
+        undetermined=undetermined,
+        n_evaluations=obj.n_evaluations + 1,
+        message=message,
+        jacobian=None if J is None else np.array(J),
+    )

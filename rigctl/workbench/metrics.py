@@ -1,0 +1,192 @@
+"""The event-aware error between a model and a measured campaign.
+
+Per paired slip (:mod:`rigctl.workbench.alignment`) and feature (:mod:`rigctl.workbench.features`)
+the residual is ``model - measured`` (``ln(model / measured)`` for durations, rates and
+stiffnesses). It is expressed in units of the feature's event-to-event scatter in the measurement
+(``Dataset.sigma``) and averaged over *blocks* of up to six consecutive slips of a drive segment (the
+first slip of a segment is a block of its own), giving
+
+    z_b = mean_{i in b}(r_i) / (sigma / sqrt(n_b)).
+
+Averaging first lets a small systematic misfit of a noisy feature (e.g. drop sharpness, which
+depends on where the samples fall in a sub-millisecond slip) stand out of the scatter, while the
+blocks stay short enough to keep trends over cycles, holds and velocity steps. The error is
+
+    E = sqrt( mean_features( mean_blocks z_b^2 ) ),
+
+every feature weighing the same whatever its number of events; E is about 1 when the model is
+within the measurement's scatter. A measured slip the model does not make counts z = 5 per slip; a
+model slip in a segment where the measurement has none counts z = 3 per slip (in ``drop_N``).
+Nothing here compares time series point by point over many cycles: slip timing drifts, and such an
+RMSE would measure the phase drift, not the physics (shared/spec/model.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.workbench.alignment import match_events, spurious_counts
+from rigctl.workbench.dataset import Dataset, PreparedRun
+from rigctl.workbench.feature_info import FEATURES
+from rigctl.workbench.features import EVENT_FEATURES, EventTable
+from rigctl.workbench.signals import FloatArray
+
+MISSING_EVENT_Z = 5.0
+SPURIOUS_EVENT_Z = 3.0
+INIT_FEATURE = "init_k_N_per_m"
+
+
+@dataclass
+class RunComparison:
+    """Event-level comparison of one run."""
+
+    match: np.ndarray
+    residual: dict[str, FloatArray]
+    """Per measured event: model - measured (ln ratio for log features); NaN where not compared."""
+    missing: dict[str, np.ndarray]
+    """Per measured event: measured value exists but the model has none (no paired slip)."""
+    init_residual: FloatArray
+    spurious: np.ndarray
+    """Model slips per drive segment where the measurement has none."""
+
+
+def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
+    if FEATURES[name].log:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out: FloatArray = np.where((meas > 0) & (model > 0), np.log(model / meas), np.nan)
+        return out
+    return model - meas
+
+
+def compare_run(run: PreparedRun, model_events: EventTable) -> RunComparison:
+    meas = run.events
+    match = match_events(meas, model_events)
+    paired = match >= 0
+    residual: dict[str, FloatArray] = {}
+    missing: dict[str, np.ndarray] = {}
+    for name in EVENT_FEATURES:
+        mv = meas.features[name]
+        model_v = np.full(meas.n, np.nan)
+        model_v[paired] = model_events.features[name][match[paired]]
+        residual[name] = _residual(name, mv, model_v)
+        missing[name] = np.isfinite(mv) & ~np.isfinite(residual[name])
+    init = _residual(INIT_FEATURE, meas.init_k_N_per_m, model_events.init_k_N_per_m)
+    spur = spurious_counts(meas, model_events, run.drive.n_segments())
+    return RunComparison(match, residual, missing, init, spur)
+
+
+@dataclass
+class Score:
+    """The error of a model on a campaign and the residual vector identification minimises."""
+
+    vector: FloatArray
+    error: float
+    feature_error: dict[str, float]
+    """sqrt(mean_b z_b^2) of each feature (the terms of E)."""
+    n_events: int
+    comparisons: list[RunComparison]
+
+    def to_dict(self) -> dict[str, float]:
+        return {"error": self.error, **{f"{k}": v for k, v in self.feature_error.items()}}
+
+
+def score(dataset: Dataset, model_events: list[EventTable]) -> Score:
+    """Compare model events with the measured ones run by run; see the module docstring."""
+    comps = [compare_run(r, m) for r, m in zip(dataset.runs, model_events, strict=True)]
+    parts: list[FloatArray] = []
+    sums: dict[str, float] = {}
+    counts: dict[str, int] = {}
+    for name in EVENT_FEATURES:
+        sigma = dataset.sigma[name]
+        for run, comp in zip(dataset.runs, comps, strict=True):
+            meas = run.events.features[name]
+            z_ev = comp.residual[name] / sigma
+            z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
+            zb = np.zeros(len(run.blocks))
+            for b, idx in enumerate(run.blocks):
+                active = np.isfinite(meas[idx])
+                if not active.any():
+                    continue
+                z = z_ev[idx][active]
+                z = np.where(np.isfinite(z), z, MISSING_EVENT_Z)
+                zb[b] = float(np.mean(z)) * math.sqrt(z.size)
+                sums[name] = sums.get(name, 0.0) + zb[b] ** 2
+                counts[name] = counts.get(name, 0) + 1
+            parts.append(zb)
+            if name == "drop_N":
+                empty = np.bincount(run.events.segment, minlength=run.drive.n_segments())
+                empty = empty[: run.drive.n_segments()] == 0
+                zs = SPURIOUS_EVENT_Z * comp.spurious.astype(np.float64)
+                parts.append(np.where(empty, zs, 0.0))
+                sums[name] = sums.get(name, 0.0) + float(np.sum(zs[empty] ** 2))
+                counts[name] = counts.get(name, 0) + int(np.count_nonzero(empty))
+    sigma_i = dataset.sigma[INIT_FEATURE]
+    for run, comp in zip(dataset.runs, comps, strict=True):
+        active = np.isfinite(run.events.init_k_N_per_m)
+        z = np.where(active, comp.init_residual / sigma_i, 0.0)
+        z = np.where(active & ~np.isfinite(z), MISSING_EVENT_Z, z)
+        parts.append(z)
+        if active.any():
+            sums[INIT_FEATURE] = sums.get(INIT_FEATURE, 0.0) + float(np.sum(z[active] ** 2))
+            counts[INIT_FEATURE] = counts.get(INIT_FEATURE, 0) + int(np.count_nonzero(active))
+    feature_error = {k: math.sqrt(sums[k] / counts[k]) for k in sums if counts[k] > 0}
+    error = math.sqrt(float(np.mean([v**2 for v in feature_error.values()]))) \
+        if feature_error else float("nan")
+    vec = np.concatenate(parts) if parts else np.zeros(0)
+    # the least-squares vector weighs features equally too: scale each feature's entries
+    return Score(_equalise(vec, dataset, counts), error, feature_error, dataset.n_events, comps)
+
+
+def _equalise(vec: FloatArray, dataset: Dataset, counts: dict[str, int]) -> FloatArray:
+    """Scale each feature's entries by 1/sqrt(its block count) so that |vec|^2 = n_feat * E^2."""
+    out = vec.copy()
+    pos = 0
+    for name in EVENT_FEATURES:
+        w = 1.0 / math.sqrt(counts[name]) if counts.get(name) else 0.0
+        for run in dataset.runs:
+            nb = len(run.blocks)
+            out[pos : pos + nb] *= w
+            pos += nb
+            if name == "drop_N":
+                ns = run.drive.n_segments()
+                out[pos : pos + ns] *= w
+                pos += ns
+    w = 1.0 / math.sqrt(counts[INIT_FEATURE]) if counts.get(INIT_FEATURE) else 0.0
+    out[pos:] *= w
+    return out
+
+
+@dataclass(frozen=True)
+class FeatureError:
+    """Event residuals of one feature in physical terms."""
+
+    unit: str
+    """The feature's unit, or 'relative' for log features (model / measured - 1)."""
+    rms: float
+    mean: float
+    n: int
+
+
+def physical_errors(comps: list[RunComparison]) -> dict[str, FeatureError]:
+    """Per feature: RMS and mean of the event residuals in the feature's unit (or relative)."""
+    out: dict[str, FeatureError] = {}
+    for name in (*EVENT_FEATURES, INIT_FEATURE):
+        if name == INIT_FEATURE:
+            r = np.concatenate([c.init_residual for c in comps])
+        else:
+            r = np.concatenate([c.residual[name] for c in comps])
+        r = r[np.isfinite(r)]
+        if r.size == 0:
+            continue
+        info = FEATURES[name]
+        vals = np.expm1(r) if info.log else r
+        out[name] = FeatureError(
+            "relative" if info.log else info.unit,
+            float(np.sqrt(np.mean(vals**2))),
+            float(np.mean(vals)),
+            int(r.size),
+        )
+    return out

@@ -1,0 +1,199 @@
+"""Run independent tasks (candidate fits) in parallel: local processes or a Dask cluster.
+
+* default: each task in its own forked process (``fork`` start method where the platform has it:
+  children start at once with everything imported), at most ``workers`` at a time (default: the
+  CPUs). A task that raises, dies, or runs past its time limit becomes a :class:`TaskFailed` (the
+  process is killed) instead of stopping the others - a candidate model whose simulation never ends
+  must not hang the whole diagnosis. The limit is ``timeout_s``, tightened once three tasks have
+  finished to ``max(6 x the slowest finished task, 20 s)``.
+* ``in_process=True``: the tasks run one after the other in this process (no protection; for
+  debugging and profiling).
+* ``scheduler="tcp://host:port"`` (or a ``distributed.Client``): the tasks go to that Dask
+  distributed cluster (``client.map``); tasks still running at the time limit are cancelled and
+  reported as failed.
+
+Results come back in task order; ``on_done(index, result)`` is called as each finishes.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+DEFAULT_TIMEOUT_S = 300.0
+ADAPTIVE_FACTOR = 6.0
+ADAPTIVE_FLOOR_S = 20.0
+
+
+CONNECT_TIMEOUT_S = 30.0
+
+
+class SchedulerError(ValueError):
+    """The Dask scheduler cannot be reached (a usage problem: one line, exit code 2)."""
+
+
+@dataclass(frozen=True)
+class TaskFailed:
+    """A task that raised, died or was stopped at its time limit."""
+
+    message: str
+
+
+def default_workers() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+def run_tasks(
+    fn: Callable[[T], R],
+    tasks: Sequence[T],
+    *,
+    workers: int | None = None,
+    scheduler: Any = None,
+    on_done: Callable[[int, R | TaskFailed], None] | None = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+    in_process: bool = False,
+) -> list[R | TaskFailed]:
+    if not tasks:
+        return []
+    if scheduler is not None:
+        return _run_dask(fn, tasks, scheduler, on_done, timeout_s)
+    if in_process:
+        out: list[R | TaskFailed] = []
+        for i, task in enumerate(tasks):
+            res: R | TaskFailed = fn(task)
+            if on_done:
+                on_done(i, res)
+            out.append(res)
+        return out
+    return _run_processes(fn, tasks, workers or default_workers(), on_done, timeout_s)
+
+
+def _child(fn: Callable[[Any], Any], task: Any, conn: Connection) -> None:
+    try:
+        payload: tuple[str, Any] = ("ok", fn(task))
+    except BaseException as exc:  # report anything, the parent decides
+        payload = ("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}")
+    try:
+        conn.send(payload)
+    except Exception as exc:  # e.g. an unpicklable result
+        conn.send(("error", f"cannot return the result: {exc}"))
+    conn.close()
+
+
+def _run_processes(
+    fn: Callable[[T], R], tasks: Sequence[T], workers: int,
+    on_done: Callable[[int, R | TaskFailed], None] | None, timeout_s: float,
+) -> list[R | TaskFailed]:
+    methods = multiprocessing.get_all_start_methods()
+    ctx: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    results: list[Any] = [None] * len(tasks)
+    todo = list(range(len(tasks)))
+    running: dict[int, tuple[Any, Connection, float]] = {}
+    finished_times: list[float] = []
+
+    def finish(i: int, value: R | TaskFailed) -> None:
+        results[i] = value
+        if on_done:
+            on_done(i, value)
+
+    try:
+        while todo or running:
+            while todo and len(running) < max(1, workers):
+                i = todo.pop(0)
+                recv, send = ctx.Pipe(duplex=False)
+                proc = ctx.Process(target=_child, args=(fn, tasks[i], send), daemon=True)
+                proc.start()
+                send.close()
+                running[i] = (proc, recv, time.monotonic())
+            ready = wait([c for _, c, _ in running.values()], timeout=0.2)
+            now = time.monotonic()
+            for i in list(running):
+                proc, conn, t0 = running[i]
+                if conn in ready:
+                    try:
+                        status, value = conn.recv()
+                    except EOFError:
+                        status, value = "error", f"worker died (exit code {proc.exitcode})"
+                    conn.close()
+                    proc.join(timeout=5)
+                    del running[i]
+                    finished_times.append(now - t0)
+                    finish(i, value if status == "ok" else TaskFailed(str(value)))
+                    continue
+                limit = timeout_s
+                if len(finished_times) >= 3:
+                    limit = min(limit, max(ADAPTIVE_FACTOR * max(finished_times),
+                                           ADAPTIVE_FLOOR_S))
+                if now - t0 > limit:
+                    proc.kill()
+                    proc.join(timeout=5)
+                    conn.close()
+                    del running[i]
+                    finish(i, TaskFailed(f"stopped after {now - t0:.0f} s (time limit)"))
+    finally:
+        for proc, conn, _ in running.values():
+            proc.kill()
+            proc.join(timeout=5)
+            conn.close()
+    return results
+
+
+def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` (SchedulerError if unreachable)."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=timeout_s)
+    except (OSError, TimeoutError) as exc:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
+
+
+def _run_dask(
+    fn: Callable[[T], R], tasks: Sequence[T], scheduler: Any,
+    on_done: Callable[[int, R | TaskFailed], None] | None, timeout_s: float,
+) -> list[R | TaskFailed]:
+    from distributed import Client, as_completed
+    from distributed.client import Future
+
+    own = not isinstance(scheduler, Client)
+    client = connect(scheduler, min(timeout_s, CONNECT_TIMEOUT_S)) if own else scheduler
+    try:
+        futures: list[Future] = client.map(fn, list(tasks), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        results: list[Any] = [None] * len(tasks)
+        done_keys: set[Any] = set()
+        try:
+            for fut in as_completed(futures, timeout=timeout_s):
+                i = index[fut.key]
+                done_keys.add(fut.key)
+                try:
+                    value: R | TaskFailed = fut.result()
+                except Exception as exc:
+                    value = TaskFailed(f"{type(exc).__name__}: {exc}")
+                results[i] = value
+                if on_done:
+                    on_done(i, value)
+        except TimeoutError:
+            pass
+        for fut in futures:
+            if fut.key not in done_keys:
+                fut.cancel()
+                i = index[fut.key]
+                results[i] = TaskFailed(f"not finished on the cluster within {timeout_s:.0f} s")
+                if on_done:
+                    on_done(i, results[i])
+        return results
+    finally:
+        if own:
+            client.close()

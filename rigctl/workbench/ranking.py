@@ -1,0 +1,127 @@
+"""Rank candidate effects by evidence and reach a verdict.
+
+For each candidate the base model plus the effect is identified (:mod:`rigctl.workbench.fitting`).
+Evidence is the Bayesian information criterion (Schwarz, Ann. Stat. 6, 1978) with the number of slip
+events n as the sample count and the event-aware error E (:mod:`rigctl.workbench.metrics`) as the
+residual scale:
+
+    BIC = n ln(E^2) + k ln(n),     delta_BIC = n ln(E_cand^2 / E_base^2) + (k_cand - k_base) ln(n).
+
+A candidate is *significant* when delta_BIC <= -10 ("very strong" evidence on the scale of Kass &
+Raftery, JASA 90, 1995), it removes at least 10 % of the error (so that a huge campaign cannot
+make a negligible improvement look decisive) and E^2 falls by at least 0.5 (E is in units of the
+measured scatter: a model already within the scatter has nothing left for an effect to explain, however
+large the ratio of two small errors). Verdict:
+
+* ``none`` - no candidate is significant: nothing earns its parameters;
+* ``indistinguishable`` - the best significant candidates are within 6 in BIC of each other (Kass &
+  Raftery's "strong"): the data cannot tell them apart, and the protocols that reveal them are
+  suggested (each effect declares its ``reveal_protocol``);
+* otherwise the best candidate's name.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from rigctl.workbench.model_choice import effect_class
+
+SIGNIFICANT_DELTA_BIC = -10.0
+MIN_ERROR_REDUCTION = 0.10
+MIN_E2_REDUCTION = 0.5
+INDISTINGUISHABLE_DELTA_BIC = 6.0
+
+
+@dataclass
+class CandidateScore:
+    """One candidate's evidence."""
+
+    effect: str
+    error: float
+    error_reduction: float
+    delta_bic: float
+    significant: bool
+    n_params: int
+    explains: str = ""
+    values: dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "effect": self.effect,
+            "error": _num(self.error),
+            "error_reduction": _num(self.error_reduction),
+            "delta_bic": _num(self.delta_bic),
+            "significant": self.significant,
+            "explains": self.explains,
+        }
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def delta_bic(e_base: float, e_cand: float, n_events: int, extra_params: int) -> float:
+    n = max(n_events, 2)
+    if not (e_base > 0 and e_cand > 0):
+        return math.nan
+    return n * math.log(e_cand**2 / e_base**2) + extra_params * math.log(n)
+
+
+def score_candidate(
+    effect: str, e_base: float, e_cand: float, n_events: int, extra_params: int
+) -> CandidateScore:
+    dbic = delta_bic(e_base, e_cand, n_events, extra_params)
+    reduction = (e_base - e_cand) / e_base if e_base > 0 else math.nan
+    significant = (
+        math.isfinite(dbic) and dbic <= SIGNIFICANT_DELTA_BIC and reduction >= MIN_ERROR_REDUCTION
+        and e_base**2 - e_cand**2 >= MIN_E2_REDUCTION
+    )
+    return CandidateScore(effect, e_cand, reduction, dbic, significant, extra_params)
+
+
+@dataclass
+class Verdict:
+    verdict: str
+    candidates: list[str]
+    suggest: str | None
+
+
+def rank(scores: Sequence[CandidateScore]) -> list[CandidateScore]:
+    """Best evidence first (lowest delta BIC; failed fits last)."""
+    return sorted(scores, key=lambda s: (not math.isfinite(s.delta_bic), s.delta_bic))
+
+
+def verdict(ranked: Sequence[CandidateScore], effect_files: tuple[str, ...] = (),
+            protocols_present: Sequence[str] = ()) -> Verdict:
+    sig = [s for s in ranked if s.significant]
+    if not sig:
+        return Verdict("none", [], None)
+    best = sig[0]
+    close = [s for s in sig[1:] if s.delta_bic - best.delta_bic < INDISTINGUISHABLE_DELTA_BIC]
+    if not close:
+        return Verdict(best.effect, [], None)
+    names = [best.effect] + [s.effect for s in close]
+    return Verdict("indistinguishable", names, suggest_protocol(names, effect_files,
+                                                                 protocols_present))
+
+
+def suggest_protocol(names: Sequence[str], effect_files: tuple[str, ...] = (),
+                     protocols_present: Sequence[str] = ()) -> str:
+    """The experiments that would separate the effects (each effect's ``reveal_protocol``)."""
+    parts: list[str] = []
+    seen: set[str] = set()
+    for name in names:
+        cls = effect_class(name, effect_files)
+        proto = (getattr(cls, "reveal_protocol", "") or "").strip() if cls else ""
+        if not proto or proto in seen:
+            continue
+        seen.add(proto)
+        parts.append(f"{proto} (reveals {name})")
+    if not parts:
+        return "vary the conditions the candidates depend on: normal force, velocity, hold time"
+    text = "run " + "; or ".join(parts)
+    if protocols_present:
+        text += f" - this campaign has: {', '.join(protocols_present)}"
+    return text

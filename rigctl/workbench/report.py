@@ -1,0 +1,128 @@
+"""HTML reports of ``model compare`` and ``model diagnose`` (with PNG figures) in a folder."""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from rigctl.workbench import plots
+from rigctl.workbench.compare import Comparison
+from rigctl.workbench.diagnose import Diagnosis
+from rigctl.workbench.feature_info import FEATURES
+
+_STYLE = """<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
+table{border-collapse:collapse;font-size:0.9em}td,th{border:1px solid #ccc;padding:3px 8px}
+th{background:#f3f3f3}img{max-width:100%;border:1px solid #eee;margin:0.5em 0}
+.bad{color:#b00}</style>"""
+
+
+def _fmt(x: object) -> str:
+    if isinstance(x, float):
+        if not math.isfinite(x):
+            return "-"
+        return f"{x:.4g}"
+    return html.escape(str(x))
+
+
+def _table(header: list[str], rows: Sequence[Sequence[object]]) -> str:
+    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>"]
+    for r in rows:
+        out.append("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in r) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def _comparison_sections(cmp: Comparison, folder: Path) -> list[str]:
+    res = cmp.results
+    figs = [
+        plots.overlay_time(cmp.runs, res, cmp.dataset, cmp.evaluation.events,
+                           folder / "overlay_time.png"),
+        plots.loops(cmp.runs, res, cmp.dataset, cmp.evaluation.events, folder / "loops.png"),
+        plots.features(cmp.dataset, cmp.evaluation.events, folder / "features.png"),
+        plots.residual_heatmap(cmp.rmap, folder / "residual_map.png"),
+    ]
+    feat_rows = [
+        [FEATURES[name].phrase, cmp.fit.feature_error.get(name, math.nan), fe.rms, fe.mean,
+         fe.unit, fe.n]
+        for name, fe in cmp.errors.items()
+    ]
+    par_rows = [
+        [r["name"], r["value"], r["sigma"] if r["sigma"] is not None else math.nan, r["unit"],
+         "yes" if r["fitted"] else "", "" if r["determined"] or not r["fitted"] else
+         "NOT determined by these data"]
+        for r in cmp.parameter_rows()
+    ]
+    disc = "".join(f"<li>{html.escape(s)}</li>" for s in cmp.discrepancies) or \
+        "<li>no structured discrepancy above the scatter</li>"
+    return [
+        f"<h2>Model {html.escape(cmp.fit.choice.label())}: error {cmp.fit.error:.3g}</h2>",
+        "<p>Error E: RMS over features of block-averaged event residuals in units of the "
+        "measurement's event-to-event scatter (about 1 = within the scatter; docs/workbench.md)."
+        "</p>",
+        "<h3>Where it fails</h3><ul>" + disc + "</ul>",
+        f'<img src="{figs[3].name}">',
+        "<h3>Model against measurement</h3>",
+        f'<img src="{figs[0].name}"><img src="{figs[1].name}"><img src="{figs[2].name}">',
+        "<h3>Per-feature error</h3>",
+        _table(["feature", "z error", "RMS residual", "mean residual", "unit", "events"],
+               feat_rows),
+        "<h3>Parameters</h3>",
+        _table(["parameter", "value", "1-sigma", "unit", "fitted", "note"], par_rows),
+    ]
+
+
+def _page(title: str, body: list[str]) -> str:
+    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
+            f"</title>{_STYLE}</head><body><h1>{html.escape(title)}</h1>\n"
+            + "\n".join(body) + "</body></html>")
+
+
+def write_compare_report(cmp: Comparison, folder: str | Path) -> Path:
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    body = [f"<p>Runs: {html.escape(', '.join(cmp.dataset.names))} "
+            f"({cmp.dataset.n_events} slip events)</p>"]
+    body += _comparison_sections(cmp, out)
+    path = out / "index.html"
+    path.write_text(_page("rigctl model compare", body), encoding="utf-8")
+    return path
+
+
+def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path) -> Path:
+    """``cmp`` is the comparison of the diagnosed (first) model, for overlays and the map."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    r0 = diag.first
+    rank_png = plots.ranking(r0.ranking, r0.model.error, out / "ranking.png")
+    rows = [[s.effect, s.error, s.error_reduction, s.delta_bic,
+             "yes" if s.significant else "", s.explains] for s in r0.ranking]
+    v = r0.verdict
+    verdict = html.escape(v.verdict)
+    if v.candidates:
+        verdict += " (" + html.escape(", ".join(v.candidates)) + ")"
+    body = [
+        f"<p>Runs: {html.escape(', '.join(diag.dataset.names))} ({diag.dataset.n_events} slip "
+        f"events); protocols present: {html.escape(', '.join(diag.protocols) or 'none')}</p>",
+        f"<h2>Verdict: {verdict}</h2>",
+    ]
+    if v.suggest:
+        body.append(f"<p>To tell them apart: {html.escape(v.suggest)}</p>")
+    body += [
+        f'<img src="{rank_png.name}">',
+        _table(["effect", "error", "error reduction", "delta BIC", "significant", "explains"],
+               rows),
+    ]
+    if len(diag.steps) > 1:
+        fall = plots.error_fall([s.model for s in diag.steps], [s.error for s in diag.steps],
+                                out / "error_fall.png")
+        body += ["<h2>Adding effects</h2>", f'<img src="{fall.name}">',
+                 _table(["step", "model", "added", "error", "delta BIC", "note"],
+                        [[s.index, s.model, s.added or "", s.error,
+                          s.delta_bic if s.delta_bic is not None else math.nan, s.note]
+                         for s in diag.steps])]
+    body += _comparison_sections(cmp, out)
+    path = out / "index.html"
+    path.write_text(_page("rigctl model diagnose", body), encoding="utf-8")
+    return path

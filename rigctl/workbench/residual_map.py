@@ -1,0 +1,247 @@
+"""Where a model fails: residuals located in time, by stage, by phase and against covariates.
+
+Inputs are the event-level comparisons of :mod:`rigctl.workbench.metrics`. Every per-event residual
+is taken in units of the feature's measured scatter (z). The map has four views:
+
+* by **time**: mean z of each feature in tenths of each run;
+* by **stage**: mean z over initial-stage events (the slip that ends loading from rest) and over
+  stable events;
+* by **phase**: stick-phase features (peak, loading rate, K(i), rounding, recurrence, probe lag) and
+  slip-phase features (drop, trough, ringing, sharpness, slip, Fn swing) - a compact view of whether
+  the model fails while the interface sticks or while it slips;
+* against **covariates** (drive velocity, hold and stick time, Fn, cycle number, cumulative slip,
+  Ft, dFt/dt, time): for every feature and covariate a straight-line fit z = a + b g(c), with
+  g = ln for positive covariates spanning more than a decade (hold and stick times, velocities),
+  giving the trend's amplitude (b times the spread of g, in z) and its t statistic.
+
+:func:`discrepancies` turns the strongest structures into sentences such as "peaks after long
+holds are under-predicted by 3.1 N, growing with log stick time".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.workbench.dataset import Dataset
+from rigctl.workbench.feature_info import FEATURES
+from rigctl.workbench.features import COVARIATES, EVENT_FEATURES
+from rigctl.workbench.metrics import RunComparison
+from rigctl.workbench.signals import FloatArray
+
+STICK_FEATURES = ("peak_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding", "lag_m")
+SLIP_FEATURES = ("trough_N", "drop_N", "ring_N", "step_frac", "slip_m", "fn_swing_N")
+
+COVARIATE_NAMES: dict[str, str] = {
+    "t_s": "time",
+    "cycle": "cycle number",
+    "fn_N": "Fn",
+    "v_drive_m_per_s": "drive velocity",
+    "hold_s": "hold time",
+    "stick_time_s": "stick time",
+    "cum_slip_m": "cumulative slip",
+    "ft_N": "Ft",
+    "dft_dt_N_per_s": "dFt/dt",
+}
+HIGH_END: dict[str, str] = {
+    "t_s": "late in the run", "cycle": "in later cycles", "fn_N": "at high Fn",
+    "v_drive_m_per_s": "at high drive velocity", "hold_s": "after long holds",
+    "stick_time_s": "after long sticks", "cum_slip_m": "after much slip", "ft_N": "at high Ft",
+    "dft_dt_N_per_s": "at fast loading",
+}
+LOW_END: dict[str, str] = {
+    "t_s": "early in the run", "cycle": "in the first cycles", "fn_N": "at low Fn",
+    "v_drive_m_per_s": "at low drive velocity", "hold_s": "after short holds",
+    "stick_time_s": "after short sticks", "cum_slip_m": "before much slip", "ft_N": "at low Ft",
+    "dft_dt_N_per_s": "at slow loading",
+}
+
+TREND_T_MIN = 3.0
+TREND_AMPLITUDE_MIN = 1.0
+
+
+@dataclass(frozen=True)
+class Trend:
+    feature: str
+    covariate: str
+    log: bool
+    amplitude_z: float
+    """b * std(g(c)): how far the trend moves the residual across the data, in scatter units."""
+    t_stat: float
+    n: int
+    slope: float
+    """dz / dg"""
+
+
+@dataclass
+class ResidualMap:
+    by_time: dict[str, FloatArray]
+    """Mean z per feature in ten time bins (all runs' relative times pooled)."""
+    by_stage: dict[str, dict[str, float]]
+    """{"initial": {feature: mean z}, "stable": {...}}"""
+    by_phase: dict[str, float]
+    """RMS z of stick-phase and slip-phase features."""
+    trends: list[Trend]
+    bias: dict[str, tuple[float, float]]
+    """Per feature: (mean z, t statistic of the mean)."""
+    table: dict[str, dict[str, FloatArray]]
+    """Per feature: z and the physical residual of every event ("z", "r") and each covariate."""
+
+
+def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict[str, FloatArray]]:
+    out: dict[str, dict[str, FloatArray]] = {}
+    for name in EVENT_FEATURES:
+        sigma = dataset.sigma[name]
+        r = np.concatenate([c.residual[name] for c in comps]) if comps else np.zeros(0)
+        cols: dict[str, FloatArray] = {"r": r, "z": r / sigma}
+        for cov in COVARIATES:
+            cols[cov] = np.concatenate([run.events.covariates[cov] for run in dataset.runs])
+        cols["stage"] = np.concatenate([run.events.stage.astype(float) for run in dataset.runs])
+        cols["t_frac"] = np.concatenate(
+            [run.events.t_drop_s / max(run.n_samples / run.sample_rate_hz, 1e-9)
+             for run in dataset.runs]
+        )
+        out[name] = cols
+    return out
+
+
+LOG_SPAN = 5.0
+
+
+def transform(c: FloatArray) -> tuple[FloatArray, bool]:
+    """ln for non-negative covariates whose positive values span more than LOG_SPAN (zeros, e.g.
+    no hold, sit half the smallest positive value below it), the covariate itself otherwise."""
+    pos = c[c > 0]
+    if np.all(c >= 0) and pos.size >= 2 and pos.max() / pos.min() > LOG_SPAN:
+        shift = 0.5 * float(pos.min()) if pos.size < c.size else 0.0
+        return np.log(c + shift), True
+    return c, False
+
+
+def _trend(z: FloatArray, c: FloatArray) -> tuple[bool, float, float, float, int] | None:
+    ok = np.isfinite(z) & np.isfinite(c)
+    if np.count_nonzero(ok) < 6:
+        return None
+    z, c = z[ok], c[ok]
+    g, log = transform(c)
+    sg = float(np.std(g))
+    if sg <= 0 or float(np.ptp(g)) <= 1e-12 * (abs(float(np.mean(g))) + 1e-300):
+        return None
+    gc = (g - g.mean()) / sg
+    slope_std = float(gc @ (z - z.mean())) / float(gc @ gc)
+    resid = z - z.mean() - slope_std * gc
+    n = z.size
+    s2 = float(resid @ resid) / max(n - 2, 1)
+    se = math.sqrt(s2 / float(gc @ gc)) if s2 > 0 else 0.0
+    t = slope_std / se if se > 0 else (math.inf if slope_std != 0 else 0.0)
+    return log, slope_std, t, slope_std / sg, n
+
+
+def residual_map(dataset: Dataset, comps: list[RunComparison]) -> ResidualMap:
+    table = _event_table(dataset, comps)
+    by_time: dict[str, FloatArray] = {}
+    by_stage: dict[str, dict[str, float]] = {"initial": {}, "stable": {}}
+    trends: list[Trend] = []
+    bias: dict[str, tuple[float, float]] = {}
+    for name, cols in table.items():
+        z = cols["z"]
+        ok = np.isfinite(z)
+        bins = np.clip((cols["t_frac"] * 10).astype(int), 0, 9)
+        by_time[name] = np.array(
+            [float(np.mean(z[ok & (bins == b)])) if np.any(ok & (bins == b)) else np.nan
+             for b in range(10)]
+        )
+        for label, val in (("initial", 0.0), ("stable", 1.0)):
+            sel = ok & (cols["stage"] == val)
+            by_stage[label][name] = float(np.mean(z[sel])) if sel.any() else float("nan")
+        if ok.sum() >= 2:
+            m = float(np.mean(z[ok]))
+            sd = float(np.std(z[ok], ddof=1))
+            bias[name] = (m, m / (sd / math.sqrt(ok.sum())) if sd > 0 else math.inf * np.sign(m))
+        for cov in COVARIATES:
+            res = _trend(z, cols[cov])
+            if res is None:
+                continue
+            log, amp, t, slope, n = res
+            trends.append(Trend(name, cov, log, abs(amp), t, n, slope))
+    by_phase = {}
+    for label, names in (("stick", STICK_FEATURES), ("slip", SLIP_FEATURES)):
+        zs = np.concatenate([table[n]["z"] for n in names])
+        zs = zs[np.isfinite(zs)]
+        by_phase[label] = float(np.sqrt(np.mean(zs**2))) if zs.size else float("nan")
+    trends.sort(key=lambda tr: tr.amplitude_z, reverse=True)
+    return ResidualMap(by_time, by_stage, by_phase, trends, bias, table)
+
+
+def _amount(name: str, r: FloatArray) -> str:
+    info = FEATURES[name]
+    m = float(np.mean(r))
+    if info.log:
+        return f"{abs(math.expm1(m)) * 100:.0f} %"
+    unit = info.unit
+    if unit == "m":
+        return f"{abs(m) * 1e6:.2g} um"
+    if unit == "-":
+        return f"{abs(m):.2g}"
+    return f"{abs(m):.2g} {unit}"
+
+
+def _verb(mean_residual: float) -> str:
+    """Residuals are model - measured: negative means the model predicts too little."""
+    return "under-predicted" if mean_residual < 0 else "over-predicted"
+
+
+def significant_trends(rmap: ResidualMap) -> list[Trend]:
+    return [
+        t for t in rmap.trends
+        if abs(t.t_stat) >= TREND_T_MIN and t.amplitude_z >= TREND_AMPLITUDE_MIN
+    ]
+
+
+def discrepancies(rmap: ResidualMap, limit: int = 5) -> list[str]:
+    """The largest structured discrepancies, in words (one per feature, strongest first)."""
+    candidates: list[tuple[float, str]] = []
+    used: set[str] = set()
+    for tr in significant_trends(rmap):
+        if tr.feature in used:
+            continue
+        used.add(tr.feature)
+        cols = rmap.table[tr.feature]
+        z, r, c = cols["z"], cols["r"], cols[tr.covariate]
+        ok = np.isfinite(z) & np.isfinite(c)
+        lo_q, hi_q = np.quantile(c[ok], [1 / 3, 2 / 3])
+        high = ok & (c >= hi_q)
+        low = ok & (c <= lo_q)
+        m_high = float(np.mean(r[high])) if high.any() else 0.0
+        m_low = float(np.mean(r[low])) if low.any() else 0.0
+        at_high = abs(m_high) >= abs(m_low)
+        sel = high if at_high else low
+        where = (HIGH_END if at_high else LOW_END)[tr.covariate]
+        m = m_high if at_high else m_low
+        cov = ("log " if tr.log else "") + COVARIATE_NAMES[tr.covariate]
+        phrase = FEATURES[tr.feature].phrase
+        z_high = float(np.mean(z[high])) if high.any() else 0.0
+        z_low = float(np.mean(z[low])) if low.any() else 0.0
+        if z_high * z_low < 0 and min(abs(z_high), abs(z_low)) >= TREND_AMPLITUDE_MIN:
+            drift = "up" if tr.slope < 0 else "down"
+            text = (f"{phrase} drift {drift} with {cov} relative to the model: "
+                    f"{_verb(m_low)} by {_amount(tr.feature, r[low])} {LOW_END[tr.covariate]}, "
+                    f"{_verb(m_high)} by {_amount(tr.feature, r[high])} "
+                    f"{HIGH_END[tr.covariate]}")
+        else:
+            grows = "growing" if (tr.slope > 0) == (m > 0) else "shrinking"
+            text = (f"{phrase} {where} are {_verb(m)} by "
+                    f"{_amount(tr.feature, r[sel])}, {grows} with {cov}")
+        candidates.append((tr.amplitude_z * abs(tr.t_stat) ** 0.5, text))
+    for name, (mz, t) in rmap.bias.items():
+        if name in used or abs(t) < TREND_T_MIN or abs(mz) < TREND_AMPLITUDE_MIN:
+            continue
+        r = rmap.table[name]["r"]
+        r = r[np.isfinite(r)]
+        text = f"{FEATURES[name].phrase} are {_verb(float(np.mean(r)))} by {_amount(name, r)} " \
+            "throughout"
+        candidates.append((abs(mz) * abs(t) ** 0.5, text))
+    candidates.sort(key=lambda x: x[0], reverse=True)
+    return [text for _, text in candidates[:limit]]

@@ -1,0 +1,98 @@
+"""Small numerical helpers shared by event detection and feature extraction.
+
+* :func:`noise_sigma` - white-noise RMS of a sampled signal from its second differences. For white
+  noise of RMS s the second difference has variance 6 s^2, and a median-based estimate of it ignores
+  the rare large steps (slips) and any linear trend (stick ramps): s = 1.4826 MAD(d2) / sqrt(6)
+  (the normal-consistent MAD; e.g. Huber & Ronchetti, *Robust Statistics*, 2nd ed., sec. 5.1).
+* :func:`line_fit` - ordinary least-squares straight line over a window, evaluated at a chosen time.
+* :func:`von_neumann_sigma` - event-to-event scatter of a feature sequence from successive
+  differences, var = mean(diff^2) / 2 (von Neumann et al., Ann. Math. Stat. 12, 1941), robustified with
+  the MAD. It ignores slow trends, so a drifting feature is not mistaken for a noisy one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+_MAD_TO_SIGMA = 1.482602218505602
+_NOISE_SAMPLE_LIMIT = 24000
+
+
+def noise_sigma(x: FloatArray) -> float:
+    """Robust white-noise RMS of ``x`` (0 for a noise-free piecewise-linear signal)."""
+    if x.shape[0] < 4:
+        return 0.0
+    if x.shape[0] > _NOISE_SAMPLE_LIMIT:
+        # 8 evenly spread blocks are plenty for a median and keep long records cheap
+        n_blk = _NOISE_SAMPLE_LIMIT // 8
+        starts = np.linspace(0, x.shape[0] - n_blk, 8).astype(np.intp)
+        d2 = np.concatenate(
+            [x[s + 2 : s + n_blk] - 2.0 * x[s + 1 : s + n_blk - 1] + x[s : s + n_blk - 2]
+             for s in starts]
+        )
+    else:
+        d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    if mad == 0.0:
+        # quantised signals: most second differences are exactly 0; use the RMS of the small ones
+        small = d2[np.abs(d2) <= 4.0 * (np.percentile(np.abs(d2), 90) + 1e-300)]
+        return float(np.sqrt(np.mean(small**2) / 6.0)) if small.size else 0.0
+    return _MAD_TO_SIGMA * mad / math.sqrt(6.0)
+
+
+def von_neumann_sigma(values: FloatArray) -> float:
+    """Robust event-to-event scatter of a sequence (NaNs ignored; NaN if fewer than 3 values)."""
+    v = values[np.isfinite(values)]
+    if v.shape[0] < 3:
+        return float("nan")
+    d = np.diff(v)
+    return _MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+
+
+def line_fit(t: FloatArray, y: FloatArray, i0: int, i1: int, t_eval: float) -> tuple[float, float]:
+    """Least-squares line through samples [i0, i1); returns (value at ``t_eval``, slope).
+
+    Returns NaNs when the window holds fewer than 3 samples.
+    """
+    i0 = max(i0, 0)
+    i1 = min(i1, t.shape[0])
+    if i1 - i0 < 3:
+        return float("nan"), float("nan")
+    n = i1 - i0
+    t0 = float(t[i0])
+    tt = t[i0:i1] - t0
+    yy = y[i0:i1]
+    st = float(tt.sum())
+    sy = float(yy.sum())
+    sxx = float(tt @ tt) - st * st / n
+    if sxx <= 0.0:
+        return sy / n, float("nan")
+    slope = (float(tt @ yy) - st * sy / n) / sxx
+    return sy / n + slope * (t_eval - t0 - st / n), slope
+
+
+def regress_slope(x: FloatArray, y: FloatArray) -> float:
+    """Least-squares slope dy/dx (NaN with fewer than 3 points or no spread in x)."""
+    if x.shape[0] < 3:
+        return float("nan")
+    dx = x - x.mean()
+    sxx = float(dx @ dx)
+    if sxx <= 0.0:
+        return float("nan")
+    return float(dx @ (y - y.mean())) / sxx
+
+
+def sliding_extreme(x: FloatArray, width: int, kind: str) -> FloatArray:
+    """out[i] = min (or max) of x[i+1 .. i+width], the window clipped at the end of the signal."""
+    n = x.shape[0]
+    pad = np.concatenate([x, np.full(width, x[-1])])
+    op = np.minimum if kind == "min" else np.maximum
+    out = pad[1 : n + 1].copy()
+    for k in range(2, width + 1):
+        op(out, pad[k : n + k], out=out)
+    return out

@@ -1,0 +1,139 @@
+"""`model diagnose --auto` (the error falls step by step), plug-ins by file and a Dask cluster.
+
+The campaign hides two effects at once, so ``--auto`` has to add one, re-identify, find the other,
+add it, and then stop because nothing significant is left.
+"""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import pytest
+
+from rigctl.cli.main import main
+from rigctl.model import build_model
+from rigctl.workbench.campaigns import simulate_campaign, write_campaign
+
+CANDIDATES = "interface_damping,probe_drift,wear,contact_degradation"
+
+PLUGIN = textwrap.dedent('''
+    """A force sensor whose zero drifts linearly in time (thermal drift of the bridge)."""
+    from rigctl.model import Effect, ParamSpec
+
+
+    class ForceSensorDrift(Effect):
+        name = "force_sensor_drift"
+        summary = "the force sensor's zero drifts linearly with time"
+        signature = "peaks and troughs drift with time while stick times stay"
+        reveal_protocol = "a long hold at zero tangential load recording Ft"
+        params = (ParamSpec("rate_N_per_s", 0.01, -1.0, 1.0, "N/s", "zero drift rate", off=0.0),)
+
+        def transform_output(self, result, values):
+            result.ft_N += values["rate_N_per_s"] * (result.t_s - result.t_s[0])
+''')
+
+
+@pytest.fixture(scope="module")
+def two_effects(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("two_effects")
+    model = build_model("paper", effects=["interface_damping", "probe_drift"],
+                        params={"mu_s": 0.145, "mu_k": 0.1},
+                        effect_params={"interface_damping": {"c_N_s_per_m": 40.0},
+                                       "probe_drift": {"rate_m_per_s": 8e-8}})
+    write_campaign(simulate_campaign(model, "tlre", seed=61, duration_scale=0.7), folder)
+    return folder
+
+
+def test_auto_adds_both_hidden_effects_and_the_error_falls(two_effects, tmp_path, capsys):
+    report = tmp_path / "auto"
+    code = main(["model", "diagnose", str(two_effects), "--auto", "--json", "--workers", "2",
+                 "--candidates", CANDIDATES, "--report", str(report)])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    steps = out["steps"]
+    assert steps[0]["added"] is None and steps[0]["error"] == pytest.approx(out["baseline_error"])
+    added = [s["added"] for s in steps[1:]]
+    assert sorted(added) == ["interface_damping", "probe_drift"], steps
+    errors = [s["error"] for s in steps]
+    assert all(b < a for a, b in zip(errors, errors[1:], strict=False)), errors
+    assert errors[-1] < 0.25 * errors[0]
+    assert out["final_model"] == steps[-1]["model"]
+    assert all(s["delta_bic"] < -10 for s in steps[1:])
+    html = (report / "index.html").read_text()
+    assert (report / "error_fall.png").stat().st_size > 5000 and "error_fall.png" in html
+
+
+def test_auto_prints_the_error_at_each_step(two_effects, capsys):
+    assert main(["model", "diagnose", str(two_effects), "--auto", "--workers", "2",
+                 "--candidates", CANDIDATES]) == 0
+    out = capsys.readouterr().out
+    table = out[out.index("\nerror at each step"):].strip().splitlines()[1:]
+    steps = [line for line in table if line.strip()[:1].isdigit()]
+    assert len(steps) == 3, out
+    assert table[-1].strip() == "stopped: nothing significant left"
+    assert all("error" in line for line in steps)
+    assert "+ interface_damping" in out and "+ probe_drift" in out
+    assert "%" in steps[1] and "%" in steps[2]  # the fall relative to the previous step
+
+
+PLUGIN_CANDIDATES = "force_sensor_drift,wear,probe_drift"
+
+
+@pytest.fixture(scope="module")
+def drifting_sensor(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("drifting")
+    plugin = folder / "sensor_drift.py"
+    plugin.write_text(PLUGIN)
+    from rigctl.model.plugins import load_effect_file
+
+    (cls,) = load_effect_file(plugin)
+    model = build_model("paper", effects=[cls], params={"mu_s": 0.155, "mu_k": 0.105},
+                        effect_params={"force_sensor_drift": {"rate_N_per_s": -0.04}})
+    data = folder / "runs"
+    write_campaign(simulate_campaign(model, "long_run", seed=62, duration_scale=0.4), data)
+    return data, plugin
+
+
+def test_a_plugin_file_takes_part_on_the_command_line(drifting_sensor, capsys):
+    data, plugin = drifting_sensor
+    assert main(["model", "diagnose", str(data), "--json", "--workers", "2",
+                 "--effect-file", str(plugin), "--candidates", PLUGIN_CANDIDATES]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["verdict"] == "force_sensor_drift", out["ranking"]
+    assert out["ranking"][0]["error_reduction"] >= 0.5
+    main(["model", "compare", str(data), "--json", "--effect-file", str(plugin)])
+    without = json.loads(capsys.readouterr().out)["error"]
+    main(["model", "compare", str(data), "--json", "--effect-file", str(plugin),
+          "--effects", "force_sensor_drift"])
+    with_it = json.loads(capsys.readouterr().out)
+    assert with_it["error"] < 0.5 * without
+    assert with_it["effects"] == ["force_sensor_drift"]
+
+
+def test_diagnose_on_a_local_dask_cluster_matches_local_processes(drifting_sensor, capsys):
+    distributed = pytest.importorskip("distributed")
+    data, plugin = drifting_sensor
+    argv = ["model", "diagnose", str(data), "--json", "--effect-file", str(plugin),
+            "--candidates", PLUGIN_CANDIDATES]
+    assert main([*argv, "--workers", "2"]) == 0
+    local = json.loads(capsys.readouterr().out)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
+        on_dask = json.loads(capsys.readouterr().out)
+        # the candidate fits ran on the cluster (its scheduler saw them)
+        assert "fit_candidate" in cluster.scheduler.task_prefixes
+    assert on_dask["verdict"] == local["verdict"] == "force_sensor_drift"
+    for a, b in zip(local["ranking"], on_dask["ranking"], strict=True):
+        assert a["effect"] == b["effect"]
+        assert a["error"] == pytest.approx(b["error"], rel=1e-9)
+
+
+def test_an_unreachable_scheduler_is_one_line(drifting_sensor, capsys):
+    data, _ = drifting_sensor
+    code = main(["model", "diagnose", str(data), "--candidates", "wear",
+                 "--scheduler", "tcp://127.0.0.1:9", "--timeout", "5"])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "scheduler" in err

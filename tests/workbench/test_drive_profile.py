@@ -1,0 +1,55 @@
+"""The measured drive becomes a few exact segments: constant, holds, steps; no motion is refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rigctl.data import DataError, MeasuredRun
+from rigctl.workbench.drive_profile import drive_profile
+
+
+def _run(x, fn, fs=1024.0, source="drive.csv"):
+    t = np.arange(x.size) / fs
+    z = np.zeros_like(t)
+    return MeasuredRun(t, x, fn, z, z, z, source=source)
+
+
+def _quantise(x, lsb=0.32e-6):
+    return np.round(x / lsb) * lsb
+
+
+def test_slide_hold_slide_gives_exact_holds_and_the_velocity():
+    fs = 1024.0
+    t = np.arange(int(40 * fs)) / fs
+    v = np.where((t > 15) & (t < 25), 0.0, 1e-5)
+    x = _quantise(np.concatenate([[0.0], np.cumsum(v[:-1]) / fs]))
+    rng = np.random.default_rng(0)
+    prof = drive_profile(_run(x, 300.0 + rng.normal(0, 0.2, t.size)))
+    assert prof.n_segments() == 3
+    assert prof.is_hold.tolist() == [False, True, False]
+    assert prof.velocity_m_per_s[1] == 0.0  # a hold is exactly a hold
+    assert np.allclose(prof.moving_velocities, 1e-5, rtol=2e-3)
+    assert np.allclose(prof.t_s[1:3], [15.0, 25.0], atol=0.1)
+    assert np.ptp(prof.fn_N) == 0.0  # a constant load stays exactly constant
+    assert prof.fn_N[0] == pytest.approx(300.0, abs=0.01)
+    assert prof.hold_time_between(10.0, 30.0) == pytest.approx(10.0, abs=0.1)
+
+
+def test_velocity_steps_and_a_load_step_are_kept():
+    fs = 1024.0
+    t = np.arange(int(30 * fs)) / fs
+    v = np.where(t < 10, 1e-5, np.where(t < 20, 5e-5, 2e-6))
+    x = _quantise(np.concatenate([[0.0], np.cumsum(v[:-1]) / fs]))
+    fn = np.where(t < 15, 250.0, 350.0)
+    prof = drive_profile(_run(x, fn))
+    assert np.allclose(sorted(set(np.round(prof.moving_velocities, 7))), [2e-6, 1e-5, 5e-5],
+                       rtol=0.02)
+    assert prof.fn_at(np.array([5.0]))[0] == pytest.approx(250.0, abs=1.0)
+    assert prof.fn_at(np.array([25.0]))[0] == pytest.approx(350.0, abs=1.0)
+
+
+def test_a_stage_that_never_moves_is_a_data_error_naming_the_file():
+    x = _quantise(np.random.default_rng(1).normal(0, 1e-8, 5000))
+    with pytest.raises(DataError, match=r"still\.csv.*does not move"):
+        drive_profile(_run(x, np.full(5000, 300.0), source="still.csv"))

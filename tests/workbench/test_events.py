@@ -1,0 +1,99 @@
+"""Slip detection and per-event features on hand-made records with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rigctl.workbench.drive_profile import drive_profile
+from rigctl.workbench.events import DetectionSettings, detect_slips
+from rigctl.workbench.features import ReadSettings, extract_events
+from tests.workbench.synth import sawtooth_run
+
+
+def _read(run):
+    det = DetectionSettings.from_signal(run.ft_N)
+    prof = drive_profile(run)
+    return extract_events(run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, ReadSettings(det, 0.12))
+
+
+def test_every_slip_is_found_once_despite_ringing_and_noise():
+    run, true = sawtooth_run(ring_N=6.0, noise_N=0.08)
+    det = DetectionSettings.from_signal(run.ft_N)
+    slips = detect_slips(run.t_s, run.ft_N, run.delta_m, det)
+    assert slips.n == true.size
+    t_peak = run.t_s[slips.i_peak]
+    assert np.max(np.abs(t_peak - true)) < 3.0 / 1024
+
+
+def test_drop_times_peaks_and_settled_troughs_match_the_construction():
+    run, true = sawtooth_run(ring_N=5.0)
+    ev = _read(run)
+    assert ev.n == true.size
+    assert np.max(np.abs(ev.t_drop_s - true)) < 2.0 / 1024
+    stable = ev.stage == 1
+    # the record ends before the stick after the last slip: its settled level is not read
+    assert np.isnan(ev.features["trough_N"][-1])
+    stable[-1] = False
+    # the settled post-slip level, not the ringing minimum (25 - 5 N)
+    assert np.allclose(ev.features["trough_N"][stable], 25.0, atol=0.1)
+    assert np.allclose(ev.features["peak_N"][stable], 45.0, atol=0.1)
+    assert np.allclose(ev.features["drop_N"][stable], 20.0, atol=0.15)
+
+
+def test_stick_features_rates_and_stiffness():
+    run, _ = sawtooth_run(rate_N_per_s=4.0, k_N_per_m=8e5, ring_N=1.0)
+    ev = _read(run)
+    stable = ev.stage == 1
+    assert np.allclose(ev.features["stick_s"][stable][1:], 20.0 / 4.0, rtol=0.01)
+    assert np.allclose(ev.features["rate_N_per_s"][stable], 4.0, rtol=0.01)
+    assert np.allclose(ev.features["k_stick_N_per_m"][stable], 8e5, rtol=0.02)
+    assert np.allclose(ev.features["rounding"][stable], 1.0, atol=0.05)
+    # delta jumps by the slip less the elastic unloading of the interface
+    assert np.allclose(ev.features["slip_m"][stable], (1.5 - 1.0) * 20.0 / 8e5, rtol=0.02)
+
+
+def test_first_event_of_a_run_loaded_from_rest_is_the_initial_stage():
+    run, _ = sawtooth_run(t_load_start_s=2.0)
+    ev = _read(run)
+    assert ev.stage[0] == 0 and np.all(ev.stage[1:] == 1)
+    # a straight initial loading: the same stiffness in every band
+    k = ev.init_k_N_per_m
+    assert np.all(np.isfinite(k))
+    assert np.ptp(k) / np.mean(k) < 0.05
+
+
+def test_ringing_feature_sees_the_ring_amplitude():
+    quiet = _read(sawtooth_run(ring_N=0.0)[0]).features["ring_N"]
+    some = _read(sawtooth_run(ring_N=2.0)[0]).features["ring_N"]
+    loud = _read(sawtooth_run(ring_N=5.0)[0]).features["ring_N"]
+    assert np.nanmedian(quiet) < 0.05  # the white noise is taken out
+    assert np.nanmedian(loud) / np.nanmedian(some) == pytest.approx(2.5, rel=0.1)
+
+
+def test_reversed_loading_is_read_like_forward_loading():
+    fwd = _read(sawtooth_run(sign=1.0)[0])
+    rev = _read(sawtooth_run(sign=-1.0)[0])
+    assert rev.n == fwd.n
+    assert np.allclose(rev.features["drop_N"][1:], fwd.features["drop_N"][1:], atol=0.1,
+                       equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_pure_noise_and_ramps_give_no_slips(seed):
+    run, _ = sawtooth_run(peak_N=1e9, duration_s=20.0, seed=seed)  # never slips
+    det = DetectionSettings.from_signal(run.ft_N)
+    assert detect_slips(run.t_s, run.ft_N, run.delta_m, det).n == 0
+
+
+def test_a_small_drop_without_a_delta_jump_is_not_a_slip():
+    run, _ = sawtooth_run(peak_N=1e9, duration_s=10.0, noise_N=0.01)
+    ft = run.ft_N.copy()
+    ft[5000:] -= 0.5  # an unloading step: Ft falls, the interface relaxes elastically
+    d_unload = run.delta_m.copy()
+    d_unload[5000:] -= 0.5 / 1e6
+    det = DetectionSettings(threshold_N=0.3)
+    assert detect_slips(run.t_s, ft, d_unload, det).n == 0
+    d = run.delta_m.copy()
+    d[5000:] += 2e-6  # the same drop with the interface jumping forward is a slip
+    assert detect_slips(run.t_s, ft, d, det).n == 1

@@ -1,0 +1,16 @@
+"""Hidden stiffness effects are named and adding them at least halves the error."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.workbench.hidden import assert_found, hidden_effect_diagnosis
+
+
+@pytest.mark.parametrize(("effect", "seed"), [
+    ("stress_evolution", 211),
+    ("load_dependent_stiffness", 212),
+    ("presliding", 214),
+])
+def test_hidden_stiffness_effect_is_found(effect, seed):
+    assert_found(effect, hidden_effect_diagnosis(effect, seed))

@@ -1,0 +1,40 @@
+"""Identification recovers parameters, reports uncertainties and flags what the data cannot see."""
+
+from __future__ import annotations
+
+import pytest
+
+from rigctl.model import build_model
+from rigctl.workbench.campaigns import simulate_campaign
+from rigctl.workbench.dataset import prepare_dataset
+from rigctl.workbench.fitting import identify_model
+from rigctl.workbench.identify import fit, free_params
+from rigctl.workbench.model_choice import ModelChoice
+
+TRUTH = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,
+         "mu_smax": 0.21, "kt0_N_per_m": 1.7e6, "p_slope": 0.8}
+
+
+@pytest.fixture(scope="module")
+def tlre():
+    return prepare_dataset(simulate_campaign(build_model("paper", params=TRUTH), "tlre", seed=11))
+
+
+def test_base_parameters_are_recovered_from_a_noisy_run(tlre):
+    res = identify_model(tlre, ModelChoice("paper"))
+    for name in ("mu_s", "mu_k", "kts_N_per_m", "k0_N_per_m", "mu_smax"):
+        assert res.choice.values[name] == pytest.approx(TRUTH[name], rel=0.03), name
+    assert res.error < 2.0
+    assert set(res.sigma) == set(res.free)
+    assert all(s > 0 for s in res.sigma.values())
+    assert "mu_s" not in res.undetermined
+
+
+def test_a_parameter_without_influence_on_the_data_is_flagged(tlre):
+    base = identify_model(tlre, ModelChoice("paper"), max_nfev=6)
+    choice = base.choice.with_effect("contact_degradation").with_values(
+        {"contact_degradation.amplitude": 0.0})
+    free = free_params(choice, ["mu_s", "contact_degradation.n_cycles"])
+    res = fit(tlre, choice, free, max_nfev=4, with_uncertainty=True)
+    assert "contact_degradation.n_cycles" in res.undetermined
+    assert "mu_s" not in res.undetermined

@@ -1,0 +1,81 @@
+"""Event pairing and the event-aware error, on event tables built by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rigctl.workbench.alignment import match_events, spurious_counts
+from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
+from rigctl.workbench.drive_profile import DriveProfile
+from rigctl.workbench.events import DetectionSettings
+from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
+from rigctl.workbench.metrics import MISSING_EVENT_Z, score
+
+
+def _table(times, segment, peak=45.0, **overrides):
+    n = len(times)
+    feats = {name: np.full(n, 1.0) for name in EVENT_FEATURES}
+    feats["peak_N"] = np.full(n, peak)
+    for k, v in overrides.items():
+        feats[k] = np.asarray(v, dtype=float)
+    cov = {name: np.arange(n, dtype=float) for name in COVARIATES}
+    return EventTable(np.asarray(times, float), np.asarray(segment), np.ones(n, np.int8), feats,
+                      cov, np.full(len(INIT_BANDS), np.nan))
+
+
+def _dataset(meas: EventTable, n_segments: int) -> Dataset:
+    knots = np.linspace(0, 100, n_segments + 1)
+    drive = DriveProfile(knots, knots * 1e-5, np.full(knots.size, 300.0), 0.0)
+    run = PreparedRun("r", 1024.0, 102400, drive, ReadSettings(DetectionSettings(0.5)), meas,
+                      _blocks(meas))
+    sigma = {name: 0.1 for name in EVENT_FEATURES}
+    sigma["init_k_N_per_m"] = 0.02
+    return Dataset((run,), sigma, {name: 1.0 for name in sigma})
+
+
+def test_first_events_of_segments_pair_with_each_other_and_the_rest_by_time():
+    meas = _table([1.0, 4.0, 7.0, 51.0, 54.0], [0, 0, 0, 1, 1])
+    model = _table([2.5, 4.2, 6.0, 9.0, 53.0, 56.5, 59.0], [0, 0, 0, 0, 1, 1, 1])
+    assert match_events(meas, model).tolist() == [0, 1, 2, 4, 5]
+
+
+def test_segments_without_model_slips_are_unpaired_and_extra_model_slips_are_spurious():
+    meas = _table([1.0, 4.0], [0, 0])
+    model = _table([2.0, 55.0, 58.0], [0, 1, 1])
+    assert match_events(meas, model).tolist() == [0, 0]
+    assert spurious_counts(meas, model, 2).tolist() == [0, 2]
+
+
+def test_error_is_zero_for_identical_events_and_grows_with_a_systematic_offset():
+    times = np.arange(1.0, 30.0, 3.0)
+    meas = _table(times, np.zeros(times.size, int))
+    ds = _dataset(meas, 1)
+    assert score(ds, [_table(times, np.zeros(times.size, int))]).error == 0.0
+    e1 = score(ds, [_table(times + 0.3, np.zeros(times.size, int), peak=45.1)])
+    e2 = score(ds, [_table(times + 0.3, np.zeros(times.size, int), peak=45.2)])
+    # only the peak feature differs: its block z is offset/sigma*sqrt(n); E averages features
+    n_feat = len(e1.feature_error)
+    assert e1.feature_error["peak_N"] == pytest.approx(
+        math.sqrt(np.mean([(1.0 * math.sqrt(len(b))) ** 2 for b in ds.runs[0].blocks])), rel=1e-6)
+    assert e2.error == pytest.approx(2 * e1.error, rel=1e-6)
+    assert e1.error == pytest.approx(e1.feature_error["peak_N"] / math.sqrt(n_feat), rel=1e-6)
+    # the least-squares vector carries the same number: |v|^2 = n_features * E^2
+    assert float(e1.vector @ e1.vector) == pytest.approx(n_feat * e1.error**2, rel=1e-9)
+
+
+def test_phase_drift_alone_costs_nothing():
+    times = np.arange(1.0, 60.0, 3.0)
+    meas = _table(times, np.zeros(times.size, int))
+    drifted = _table(times * 1.0 + np.linspace(0, 1.4, times.size), np.zeros(times.size, int))
+    assert score(_dataset(meas, 1), [drifted]).error == 0.0
+
+
+def test_a_measured_slip_the_model_does_not_make_is_penalised():
+    meas = _table([1.0, 4.0, 51.0], [0, 0, 1])
+    model = _table([1.0, 4.0], [0, 0])
+    sc = score(_dataset(meas, 2), [model])
+    assert sc.feature_error["peak_N"] >= MISSING_EVENT_Z / math.sqrt(3) - 1e-9
+    assert len(meas.first_in_segment()) == 3 and BLOCK_SIZE >= 2

@@ -1,0 +1,59 @@
+"""Parallel candidate fits: order, failures, time limits, and a Dask cluster."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from rigctl.workbench.parallel import TaskFailed, run_tasks
+
+
+def square(x: int) -> int:
+    return x * x
+
+
+def fails_on_three(x: int) -> int:
+    if x == 3:
+        raise RuntimeError("no threes")
+    return x
+
+
+def sleeps(x: float) -> float:
+    time.sleep(x)
+    return x
+
+
+def test_results_come_back_in_task_order_from_processes():
+    seen = []
+    out = run_tasks(square, [3, 1, 2, 5], workers=2, on_done=lambda i, r: seen.append(i))
+    assert out == [9, 1, 4, 25]
+    assert sorted(seen) == [0, 1, 2, 3]
+
+
+def test_a_failing_task_is_reported_and_the_others_finish():
+    out = run_tasks(fails_on_three, [1, 3, 5], workers=2)
+    assert out[0] == 1 and out[2] == 5
+    assert isinstance(out[1], TaskFailed) and "no threes" in out[1].message
+
+
+def test_a_task_past_its_time_limit_is_stopped():
+    t0 = time.monotonic()
+    out = run_tasks(sleeps, [0.01, 30.0], workers=2, timeout_s=1.0)
+    assert out[0] == 0.01
+    assert isinstance(out[1], TaskFailed) and "time limit" in out[1].message
+    assert time.monotonic() - t0 < 10.0
+
+
+def test_in_process_mode_runs_serially():
+    assert run_tasks(square, [2, 3], in_process=True) == [4, 9]
+
+
+def test_tasks_run_on_a_dask_cluster():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        out = run_tasks(square, [1, 2, 3], scheduler=cluster.scheduler_address)
+        assert out == [1, 4, 9]
+        out = run_tasks(fails_on_three, [3, 4], scheduler=cluster.scheduler_address)
+        assert isinstance(out[0], TaskFailed) and out[1] == 4
