@@ -25,6 +25,10 @@ MAX_SPEED = math.inf
 while the recorded data never falls more than ``Pacer.max_lag_s`` of rig time behind."""
 
 
+STALL_S = 0.2
+"""Host seconds without new recorded data after which the paced rig runs on at real time."""
+
+
 class Pacer:
     """Advances a manual-clock virtual rig in small steps, as fast as the acquisition keeps up.
 
@@ -76,18 +80,24 @@ class Pacer:
 
     def _run(self) -> None:
         try:
-            waiting_since: float | None = None
+            last_data = float("nan")
+            last_progress = time.monotonic()
             while not self._stop.is_set():
                 if self._data_time is None:
                     self._stop.wait(0.001)
                     continue
-                if self._lag_s() > self.max_lag_s:
-                    now = time.monotonic()
-                    waiting_since = waiting_since if waiting_since is not None else now
-                    if now - waiting_since < 0.05:  # the recorder is catching up
+                lag = self._lag_s()
+                now = time.monotonic()
+                t_data = self._data_time()
+                if t_data == t_data and t_data != last_data:
+                    last_data, last_progress = t_data, now
+                if lag > self.max_lag_s:
+                    if now - last_progress < STALL_S:  # the recorder is catching up: wait for it
                         self._stop.wait(0.001)
                         continue
-                waiting_since = None  # caught up, or stalled for 50 ms: move on regardless
+                    # no recorded data for STALL_S (a silent DAQ, a stopped acquisition): the rig's
+                    # clock goes on at real time, so timeouts and a safe-state retraction still happen
+                    self._stop.wait(self.step_s)
                 self.rig.advance_to(self.rig.t_s + self.step_s)
         except BaseException as exc:  # surfaces as silent devices, and here for the record
             self.error = exc

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from drivers.errors import DeviceTimeout
 from drivers.interfaces import Camera, Daq, DaqBlock, DisplacementProbe, LoadingStage
 from drivers.safety import ForceGuard
 from rigctl.acquisition.clockmap import ClockMap
@@ -404,6 +405,10 @@ class Acquisition:
                     continue
                 self._put(("frame", frame.image, t, frame.seq, time.monotonic()), samples=0,
                           frames=1)
+        except DeviceTimeout as exc:
+            if not self._stop.is_set():  # no frame while recording: the camera stopped answering
+                self._fail(exc, "camera")
+            # no frame while the session stops is only the end of the stream
         except BaseException as exc:
             self._fail(exc, "camera")
 
