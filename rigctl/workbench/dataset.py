@@ -27,6 +27,7 @@ from rigctl.workbench.feature_info import (
     UNIT_FLOOR,
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
+from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.signals import FloatArray
 
 BLOCK_SIZE = 6
@@ -45,6 +46,8 @@ class PreparedRun:
     events: EventTable
     blocks: tuple[np.ndarray, ...]
     """Measured-event indices of each block."""
+    notes: tuple[str, ...] = ()
+    """What reading the run found (probes over range)."""
 
 
 @dataclass(frozen=True)
@@ -100,10 +103,12 @@ def prepare_run(run: MeasuredRun, name: str) -> PreparedRun:
     prof = drive_profile(run)
     t = run.t_s - run.t_s[0]
     det = DetectionSettings.from_signal(run.ft_N)
-    slips = detect_slips(t, run.ft_N, run.delta_m, det)
+    probes = probe_range(run)
+    valid = probes.delta_valid if probes.any_over else None
+    slips = detect_slips(t, run.ft_N, run.delta_m, det, valid)
     read = ReadSettings(det, _settle_time(t, slips.i_end, slips.i_peak))
     events = extract_events(
-        run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips
+        run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips, valid
     )
     return PreparedRun(
         name=name,
@@ -113,6 +118,7 @@ def prepare_run(run: MeasuredRun, name: str) -> PreparedRun:
         read=read,
         events=events,
         blocks=_blocks(events),
+        notes=tuple(probes.notes(name)),
     )
 
 
@@ -199,6 +205,7 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
         pr = prepare_run(run, name)
+        notes.extend(pr.notes)
         if pr.events.n == 0:
             notes.append(f"{name}: no slip detected (stick-slip absent or below the noise)")
         prepared.append(pr)

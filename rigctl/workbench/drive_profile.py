@@ -11,7 +11,8 @@ noise and run slowly, so both histories are simplified to piecewise-linear curve
 2. each corner's time refined to where the straight lines fitted to its two neighbouring segments
    meet (Douglas-Peucker puts a knot on a sample, and noise moves it by several samples: at a
    velocity step of 20 um/s, 8 ms is 0.16 um of stage, three times the probe's event-to-event
-   scatter; the model would then see a drive the measurement never had);
+   scatter; the model would then see a drive the measurement never had); a sharp corner that
+   Douglas-Peucker cut with two knots becomes one;
 3. the knot values by a continuous piecewise-linear least-squares fit through all samples, so a
    segment is as accurate as the average of its samples, not of its two end samples.
 
@@ -21,6 +22,7 @@ motion start that opens the initial stage.
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,8 +30,10 @@ import numpy as np
 from rigctl.data import DataError, MeasuredRun
 from rigctl.workbench.signals import FloatArray, noise_sigma
 
-HOLD_VELOCITY_FRACTION = 0.02
-"""A segment whose speed is below this fraction of the run's fastest segment is a hold."""
+HOLD_VELOCITY_FRACTION = 0.002
+"""A segment whose speed is below this fraction of the run's fastest segment is a hold (velocity
+steps span two decades, so a slow step of 1 % of the fastest must stay a slide); so is a segment
+over which the stage moves less than the simplification tolerance (set exactly at rest)."""
 
 
 @dataclass(frozen=True)
@@ -53,7 +57,7 @@ class DriveProfile:
         """True for segments where the stage rests."""
         v = np.abs(self.velocity_m_per_s)
         vmax = float(v.max()) if v.size else 0.0
-        return np.asarray(v <= HOLD_VELOCITY_FRACTION * vmax)
+        return np.asarray((v == 0.0) | (v <= HOLD_VELOCITY_FRACTION * vmax))
 
     @property
     def moving_velocities(self) -> FloatArray:
@@ -98,29 +102,44 @@ def _quantum(x: FloatArray) -> float:
     """The smallest step of a quantised signal (0 if it is not visibly quantised)."""
     d = np.abs(np.diff(x))
     nz = d[d > 0]
-    if nz.size < 10 or nz.size > 0.5 * d.size:
+    if nz.size < 10:
         return 0.0
-    return float(np.percentile(nz, 5))
+    q = float(np.percentile(nz, 5))
+    if nz.size > 0.5 * d.size:
+        # mostly moving: still quantised if the steps are whole multiples of the smallest one (a
+        # 1 nm encoder moving more than half a step per sample), not if they are continuous noise
+        ratio = nz / q
+        if np.mean(np.abs(ratio - np.round(ratio)) < 0.05) < 0.8:
+            return 0.0
+    return q
 
 
 def douglas_peucker(t: FloatArray, y: FloatArray, tol: float, max_knots: int = 400) -> np.ndarray:
-    """Indices of the knots of a piecewise-linear approximation within ``tol`` of every sample."""
+    """Indices of the knots of a piecewise-linear approximation within ``tol`` of every sample.
+
+    The segment with the largest deviation is split first, so when ``max_knots`` runs out (a long
+    record whose tolerance is below its quantisation, e.g. a 1 nm stage encoder moving more than
+    half a step per sample) the knots went to the corners of the drive, not all to its last part.
+    """
     n = t.shape[0]
     knots = {0, n - 1}
-    stack = [(0, n - 1)]
-    while stack and len(knots) < max_knots:
-        a, b = stack.pop()
+
+    def split(a: int, b: int) -> tuple[float, int, int, int] | None:
         if b - a < 2:
-            continue
+            return None
         tt = t[a : b + 1]
         chord = y[a] + (y[b] - y[a]) * (tt - t[a]) / (t[b] - t[a])
         dev = np.abs(y[a : b + 1] - chord)
         k = int(np.argmax(dev))
-        if dev[k] > tol:
-            m = a + k
-            knots.add(m)
-            stack.append((a, m))
-            stack.append((m, b))
+        return (-float(dev[k]), a, b, a + k) if dev[k] > tol else None
+
+    heap = [s for s in (split(0, n - 1),) if s is not None]
+    while heap and len(knots) < max_knots:
+        _, a, b, m = heapq.heappop(heap)
+        knots.add(m)
+        for s in (split(a, m), split(m, b)):
+            if s is not None:
+                heapq.heappush(heap, s)
     return np.array(sorted(knots), dtype=np.intp)
 
 
@@ -163,13 +182,35 @@ def _line(t: FloatArray, y: FloatArray, lo: float, hi: float) -> tuple[float, fl
     return slope, float(np.mean(y[i0:i1])) - slope * tm
 
 
+def _merge_cut_corners(t: FloatArray, y: FloatArray, knot_t: FloatArray) -> FloatArray:
+    """A sharp corner that Douglas-Peucker cut with two knots (a segment too short to fit a line
+    between two long ones) becomes one knot where the two long segments' lines meet, if they meet
+    inside the short segment."""
+    knots = list(knot_t)
+    i = 1
+    while i + 2 < len(knots):
+        a, k1, k2, b = knots[i - 1], knots[i], knots[i + 1], knots[i + 2]
+        if _line(t, y, k1, k2) is not None:
+            i += 1
+            continue
+        left = _line(t, y, a, k1)
+        right = _line(t, y, k2, b)
+        if left is not None and right is not None and left[0] != right[0]:
+            tc = (right[1] - left[1]) / (left[0] - right[0])
+            if np.isfinite(tc) and k1 <= tc <= k2:
+                knots[i : i + 2] = [tc]
+        i += 1
+    return np.asarray(knots, dtype=np.float64)
+
+
 def refine_knot_times(t: FloatArray, y: FloatArray, knot_t: FloatArray) -> FloatArray:
     """Interior knot times moved to the intersection of the lines of their two segments.
 
     A corner is only moved when both segments hold enough samples, their slopes differ and the
     intersection lies near the knot (short segments of a curved or stepped history stay as found).
     """
-    out = knot_t.astype(np.float64).copy()
+    knot_t = _merge_cut_corners(t, y, knot_t.astype(np.float64))
+    out = knot_t.copy()
     for i in range(1, knot_t.shape[0] - 1):
         a, k, b = float(knot_t[i - 1]), float(knot_t[i]), float(knot_t[i + 1])
         left = _line(t, y, a, k)
@@ -226,7 +267,8 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     # holds: the stage rests exactly
     v = np.diff(xv) / np.diff(xt)
     vmax = float(np.max(np.abs(v))) if v.size else 0.0
-    for k in np.flatnonzero(np.abs(v) <= HOLD_VELOCITY_FRACTION * vmax):
+    rest = (np.abs(v) <= HOLD_VELOCITY_FRACTION * vmax) | (np.abs(np.diff(xv)) <= x_tol)
+    for k in np.flatnonzero(rest):
         mean = 0.5 * (xv[k] + xv[k + 1])
         xv[k] = xv[k + 1] = mean
     fv = _flatten_groups(fv, fn_tol)

@@ -63,8 +63,13 @@ def detect_slips(
     ft_N: FloatArray,
     delta_m: FloatArray | None,
     settings: DetectionSettings,
+    delta_valid: np.ndarray | None = None,
 ) -> SlipIndices:
-    """Find slip events in a force record (see the module docstring)."""
+    """Find slip events in a force record (see the module docstring).
+
+    Where ``delta_valid`` is False (a probe over range) delta cannot confirm a small drop, which is
+    then judged by the force alone.
+    """
     n = ft_N.shape[0]
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
     if n < 8:
@@ -84,6 +89,10 @@ def detect_slips(
     clusters = np.split(cand, breaks)
     d_sigma = noise_sigma(delta_m) if delta_m is not None else 0.0
     d_informative = delta_m is not None and float(np.ptp(delta_m)) > 20.0 * d_sigma
+    if delta_m is not None and delta_valid is not None:
+        d_ok = delta_m[delta_valid]
+        d_sigma = noise_sigma(d_ok) if d_ok.size else 0.0
+        d_informative = d_ok.size > 0 and float(np.ptp(d_ok)) > 20.0 * d_sigma
     peaks: list[int] = []
     ends: list[int] = []
     signs: list[int] = []
@@ -100,7 +109,9 @@ def detect_slips(
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
             continue
-        if size < settings.confirm_factor * thr and d_informative and delta_m is not None:
+        if (size < settings.confirm_factor * thr and d_informative and delta_m is not None
+                and (delta_valid is None
+                     or delta_valid[max(0, i_pk - w) : min(n, i_end + gap)].all())):
             before = float(np.median(delta_m[max(0, i_pk - w) : i_pk + 1]))
             after = float(np.median(delta_m[i_end : min(n, i_end + gap)]))
             if s * (after - before) <= 3.0 * d_sigma:

@@ -109,11 +109,19 @@ def extract_events(
     drive: DriveProfile,
     settings: ReadSettings,
     slips: SlipIndices | None = None,
+    delta_valid: np.ndarray | None = None,
 ) -> EventTable:
-    """Detect the slips of a record and measure their features (times relative to t_s[0])."""
+    """Detect the slips of a record and measure their features (times relative to t_s[0]).
+
+    ``delta_valid`` (per sample, :mod:`rigctl.workbench.probe_range`): where False a probe was over
+    range, and the delta features whose windows include such samples are left NaN (not compared).
+    """
     t = t_s - t_s[0]
     if slips is None:
-        slips = detect_slips(t, ft_N, delta_m, settings.detection)
+        slips = detect_slips(t, ft_N, delta_m, settings.detection, delta_valid)
+
+    def d_ok(i0: int, i1: int) -> bool:
+        return delta_valid is None or bool(delta_valid[max(i0, 0) : max(i1, 0)].all())
     n_ev = slips.n
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     n = t.shape[0]
@@ -167,12 +175,14 @@ def extract_events(
         feats["trough_N"][j] = trough
         feats["drop_N"][j] = s * (peak - trough)
         feats["stick_s"][j] = td - prev_td
-        feats["slip_m"][j] = s * (d_after - d_pk)
+        if d_ok(i_pre0, i_pre1) and d_ok(i_post0, i_post1):
+            feats["slip_m"][j] = s * (d_after - d_pk)
         feats["fn_swing_N"][j] = fn_pk - fn_after
         # the stage from the simplified drive (the encoder's quantisation steps would otherwise
         # show as a slow sawtooth in the lag)
         xs_pk = float(np.interp(td, drive.t_s, drive.x_stage_m))
-        feats["lag_m"][j] = xs_pk - d_pk
+        if d_ok(i_pre0, i_pre1):
+            feats["lag_m"][j] = xs_pk - d_pk
 
         # loading ramp: early slope, K(i), rounding
         if length > 20 * dt:
@@ -183,7 +193,7 @@ def extract_events(
             if rate != 0.0 and np.isfinite(rate):
                 feats["rounding"][j] = rate_end / rate
             f_seg = ft_N[i_e0:i_e1]
-            if f_seg.size > 3 and float(np.ptp(f_seg)) > 6.0 * sigma_f:
+            if f_seg.size > 3 and float(np.ptp(f_seg)) > 6.0 * sigma_f and d_ok(i_e0, i_e1):
                 compliance = regress_slope(f_seg, delta_m[i_e0:i_e1])
                 if np.isfinite(compliance) and compliance > 0.0:
                     feats["k_stick_N_per_m"][j] = 1.0 / compliance
@@ -227,22 +237,26 @@ def extract_events(
         peak0 = float(feats["peak_N"][0])
         if np.isfinite(peak0) and abs(f0) < 0.1 * abs(peak0):
             stage[0] = 0
-            init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0, sigma_f)
+            init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0, sigma_f,
+                                    delta_valid)
     return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy())
 
 
 def _initial_curve(
-    ft: FloatArray, delta: FloatArray, i0: int, i1: int, peak: float, f0: float, sigma: float
+    ft: FloatArray, delta: FloatArray, i0: int, i1: int, peak: float, f0: float, sigma: float,
+    delta_valid: np.ndarray | None = None,
 ) -> FloatArray:
-    """Local stiffness dFt/d(delta) of the initial loading in the bands of INIT_BANDS."""
+    """Local stiffness dFt/d(delta) of the initial loading in the bands of INIT_BANDS (NaN for a
+    band with a sample where delta is not valid)."""
     out = np.full(len(INIT_BANDS), np.nan)
     f = ft[i0 : i1 + 1]
     d = delta[i0 : i1 + 1]
+    ok = np.ones(f.shape[0], dtype=bool) if delta_valid is None else delta_valid[i0 : i1 + 1]
     span = peak - f0
     for b, (lo, hi) in enumerate(INIT_BANDS):
         sel = (f - f0 >= lo * span) & (f - f0 <= hi * span) if span > 0 else \
             (f - f0 <= lo * span) & (f - f0 >= hi * span)
-        if np.count_nonzero(sel) < 5 or float(np.ptp(f[sel])) < 6.0 * sigma:
+        if np.count_nonzero(sel) < 5 or float(np.ptp(f[sel])) < 6.0 * sigma or not ok[sel].all():
             continue
         c = regress_slope(f[sel], d[sel])
         if np.isfinite(c) and c != 0.0:

@@ -53,3 +53,18 @@ def test_a_stage_that_never_moves_is_a_data_error_naming_the_file():
     x = _quantise(np.random.default_rng(1).normal(0, 1e-8, 5000))
     with pytest.raises(DataError, match=r"still\.csv.*does not move"):
         drive_profile(_run(x, np.full(5000, 300.0), source="still.csv"))
+
+
+def test_corner_times_are_refined_off_the_samples_and_a_slow_step_is_no_hold():
+    fs = 1024.0
+    t = np.arange(int(40 * fs)) / fs
+    # two decades: 2, 200, 20 um/s; corners between samples
+    v = np.where(t < 14.9973, 2e-6, np.where(t < 16.0031, 2e-4, 2e-5))
+    x_true = np.concatenate([[0.0], np.cumsum(v[:-1]) / fs])
+    x = _quantise(x_true + np.random.default_rng(3).normal(0, 6e-8, t.size), lsb=0.02e-6)
+    prof = drive_profile(_run(x, np.full(t.size, 300.0)))
+    assert not prof.is_hold.any()  # 1 % of the fastest velocity is still a slide
+    assert np.allclose(prof.velocity_at(np.array([5.0, 15.5, 30.0])), [2e-6, 2e-4, 2e-5],
+                       rtol=0.01)
+    # the corners are placed between samples: the drive stays within the noise of the stage
+    assert np.max(np.abs(np.interp(t, prof.t_s, prof.x_stage_m) - x_true)) < 1.2e-7
