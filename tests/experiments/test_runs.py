@@ -129,10 +129,16 @@ def test_a_device_that_stops_answering_fails_the_run_safely(rig, tmp_path):
         time.sleep(0.005)
     rig.sim.faults["daq"].silent = True
     t_fault = time.monotonic()
+    t_stopped: list[float] = []
+    while th.is_alive() and not t_stopped:
+        if not stage.status().moving:
+            t_stopped.append(time.monotonic())
+        time.sleep(0.005)
     th.join(timeout=60)
     outcome = result[0]
     assert outcome.status == "failed"
     assert "daq" in outcome.error and "DeviceTimeout" in outcome.error
+    assert t_stopped and t_stopped[0] - t_fault < 1.0, t_stopped  # stopped within 1 s of the fault
     # safe state reached quickly: the tangential stage stopped, the normal stage retracted
     assert not stage.status().moving
     assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)
@@ -158,3 +164,30 @@ def test_a_force_limit_violated_mid_protocol_fails_and_releases(tmp_path):
     run = read_run(out)
     assert 312.0 < run.fn_N.max() < 330.0  # tripped at the crossing, not far beyond
     assert status_of(out)[0] == "failed"
+
+
+def test_a_stage_that_stops_answering_fails_the_run_and_the_load_is_released(rig, tmp_path):
+    """The tangential stage's controller goes silent mid-slide: the run fails naming it, the normal
+    load (the one thing still reachable) is released, the data before the fault is kept."""
+    out = tmp_path / "dead_stage.h5"
+    runner = make_runner(rig, "tlre", SHORT_TLRE, out)
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    while stage.position_m() < x0 + 20e-6:
+        time.sleep(0.005)
+    rig.sim.faults["tangential_stage"].silent = True
+    t_fault = time.monotonic()
+    th.join(timeout=60)
+    outcome = result[0]
+    assert outcome.status == "failed"
+    assert "tangential did not answer" in outcome.error  # the stage is named
+    assert "safe state incomplete" in outcome.error  # its stop could not be sent: said, not hidden
+    assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # released
+    assert time.monotonic() - t_fault < 15.0
+    status, error, events = status_of(out)
+    assert status == "failed" and "tangential did not answer" in error
+    assert "safe_state" in events
+    assert read_run(out).n_samples > 10_000
