@@ -277,7 +277,7 @@ class Acquisition:
                     continue
                 self._handle_block(block)
         except BaseException as exc:
-            self._fail(exc, "daq")
+            self._fail(exc, "daq thread (forces, probes, stage positions)")
 
     def _positions(self) -> tuple[float, float]:
         return (self.devices.tangential_stage.position_m(), self.devices.normal_stage.position_m())
