@@ -253,6 +253,40 @@ def _merge_close(knots: FloatArray, dt_min: float) -> FloatArray:
     return out
 
 
+FN_APART_FRACTION = 0.005
+"""Normal force below this fraction of the run's largest is taken as the specimens apart."""
+
+
+def fn_apart_N(fn_N: FloatArray) -> float:
+    """Measured normal force [N] below which the specimens are taken as apart.
+
+    Five times the force noise, or half a percent of the largest force of the run (1.5 N at 300 N),
+    whichever is larger: a measured release is zero plus noise and offset, never exactly zero.
+    """
+    peak = float(np.max(np.abs(fn_N))) if fn_N.size else 0.0
+    return max(5.0 * noise_sigma(fn_N), FN_APART_FRACTION * peak)
+
+
+APART_MIN_S = 0.1
+"""Shortest stretch below :func:`fn_apart_N` taken as a release (shorter ones are noise)."""
+
+
+def _apart_intervals(t: FloatArray, fn: FloatArray) -> list[tuple[float, float]]:
+    """Stretches ``(t_start, t_end)`` where the measured Fn stays below :func:`fn_apart_N`."""
+    below = fn < fn_apart_N(fn)
+    if not below.any():
+        return []
+    d = np.diff(below.astype(np.int8))
+    starts = [int(i) for i in np.flatnonzero(d == 1) + 1]
+    ends = [int(i) for i in np.flatnonzero(d == -1)]
+    if below[0]:
+        starts.insert(0, 0)
+    if below[-1]:
+        ends.append(below.size - 1)
+    return [(float(t[a]), float(t[b])) for a, b in zip(starts, ends, strict=True)
+            if t[b] - t[a] >= APART_MIN_S]
+
+
 def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> DriveProfile:
     """The simplified drive of ``run`` (raises DataError if the stage never moves)."""
     t = run.t_s - run.t_s[0]
@@ -273,9 +307,18 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
         xv[k] = xv[k + 1] = mean
     fv = _flatten_groups(fv, fn_tol)
     dt_min = 5.0 * float(np.median(np.diff(t)))
-    knots = _merge_close(np.union1d(xt, ft), dt_min)
+    apart = _apart_intervals(t, fn)
+    edges = np.array([e for pair in apart for e in pair], dtype=np.float64)
+    knots = _merge_close(np.union1d(np.union1d(xt, ft), edges), dt_min)
+    if edges.size:  # the edges of a release are where the contact ends and starts: keep them
+        knots = np.union1d(knots, edges)
     xk = np.interp(knots, xt, xv)
     fk = np.clip(np.interp(knots, ft, fv), 0.0, None)
+    # specimens apart: a released load reads as sensor noise around zero (and the Fn line fit may
+    # leave a few newtons there), which the engine would take for a light contact (its threshold is
+    # 0.01 N) and so never start a new initial stage when the load comes back
+    for ta, tb in apart:
+        fk[(knots >= ta) & (knots <= tb)] = 0.0
     prof = DriveProfile(knots, xk, fk, float(run.t_s[0]))
     travel = float(np.max(x) - np.min(x))
     if travel <= 4.0 * x_tol or prof.moving_velocities.size == 0:

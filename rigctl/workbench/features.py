@@ -89,6 +89,13 @@ class EventTable:
         return out
 
 
+LOAD_CHANGE_WINDOW_S = 0.25
+LOAD_CHANGE_FRACTION = 0.25
+"""A slip where the drive's normal force changes by more than this fraction within
++-LOAD_CHANGE_WINDOW_S is a load-change slip (release, re-loading): its features are not compared.
+Normal-force swings of the slips themselves (normal coupling, a few %) stay well below."""
+
+
 def _drop_time(t: FloatArray, f: FloatArray, i_pk: int, i_end: int, level: float, s: int) -> float:
     """First crossing of ``level`` after the peak, linearly interpolated between samples."""
     seg = s * f[i_pk : i_end + 1]
@@ -229,6 +236,15 @@ def extract_events(
         finite = np.isfinite(feats["lag_m"])
         if finite.any():
             feats["lag_m"] = feats["lag_m"] - float(np.median(feats["lag_m"][finite]))
+
+    if n_ev:
+        # slips set off by a change of the normal load (a release under tangential load, a
+        # re-loading) are not stick-slip cycles: they are paired, but not compared
+        fn_a = drive.fn_at(np.clip(t_drop - LOAD_CHANGE_WINDOW_S, 0.0, None))
+        fn_b = drive.fn_at(t_drop + LOAD_CHANGE_WINDOW_S)
+        changing = np.abs(fn_b - fn_a) > LOAD_CHANGE_FRACTION * np.maximum(fn_a, fn_b)
+        for name in feats:
+            feats[name][changing] = np.nan
 
     init_k = np.full(len(INIT_BANDS), np.nan)
     if n_ev:

@@ -68,3 +68,20 @@ def test_corner_times_are_refined_off_the_samples_and_a_slow_step_is_no_hold():
                        rtol=0.01)
     # the corners are placed between samples: the drive stays within the noise of the stage
     assert np.max(np.abs(np.interp(t, prof.t_s, prof.x_stage_m) - x_true)) < 1.2e-7
+
+
+def test_a_released_load_is_zero_in_the_drive_so_the_next_contact_starts_anew():
+    """A release reads as noise and offset around 0 N; the line fit of Fn may leave newtons there.
+    The drive must say 0 (specimens apart) for the engine to start a new initial stage."""
+    fs = 1024.0
+    t = np.arange(int(60 * fs)) / fs
+    fn = np.where((t > 20) & (t < 35), 0.0, 300.0)
+    fn = np.where((t > 19.8) & (t <= 20), 300.0 * (20 - t) / 0.2, fn)  # a 0.2 s unloading ramp
+    rng = np.random.default_rng(3)
+    fn_meas = fn + 0.3 + rng.normal(0, 0.2, t.size)  # offset and noise, as a tared sensor reads
+    x = _quantise(1e-5 * t)
+    prof = drive_profile(_run(x, fn_meas))
+    gap = (t > 20.5) & (t < 34.5)
+    assert np.all(prof.fn_at(t[gap]) == 0.0)
+    loaded = (t > 40)
+    assert np.allclose(prof.fn_at(t[loaded]), 300.3, atol=1.0)
