@@ -253,10 +253,13 @@ class Runner:
                 status, error = "aborted", "interrupted (Ctrl-C)"
         finally:
             if status != "completed":
+                t_fault = acq.t_s
                 problems = safe_state(ctx, error or status)
+                self._wait_released(ctx)
+                problems += _unreleased(ctx, t_fault)
                 if problems:
                     error = f"{error}; safe state incomplete: {'; '.join(problems)}"
-                self._wait_released(ctx)
+                    _log.critical("safe state incomplete: %s", "; ".join(problems))
             stats = acq.stop(status, error)
             guard_detach(self.devices.normal_stage, guard)
         return RunOutcome(status, error, self.out, plan, stats, time.monotonic() - t_wall, problems)
@@ -271,6 +274,23 @@ class Runner:
             except Exception:
                 return
             time.sleep(0.02)
+
+
+RELEASED_MAX_N = 5.0
+"""|Fn| above this after the safe state's release means the load is still on the specimen."""
+
+
+def _unreleased(ctx: RunContext, t_fault_s: float) -> list[str]:
+    """The release checked on the measured force, not on the stage's word for it."""
+    if math.isfinite(t_fault_s):
+        ctx.acq.wait_until(t_fault_s + 0.2, 2.0)  # a fresh look at the force after the release
+    t_now = ctx.acq.t_s
+    if not (math.isfinite(t_now) and t_now > t_fault_s):
+        return ["the release could not be confirmed: no force data since the fault"]
+    fn = ctx.acq.mean("fn_N", 0.1)
+    if math.isfinite(fn) and abs(fn) > RELEASED_MAX_N:
+        return [f"the normal load is still on: Fn = {fn:.1f} N after the release (check the rig)"]
+    return []
 
 
 def guard_detach(stage: Any, guard: ForceGuard) -> None:

@@ -191,3 +191,27 @@ def test_a_stage_that_stops_answering_fails_the_run_and_the_load_is_released(rig
     assert status == "failed" and "tangential did not answer" in error
     assert "safe_state" in events
     assert read_run(out).n_samples > 10_000
+
+
+def test_a_release_that_does_not_happen_is_reported_from_the_measured_force(rig, tmp_path):
+    """The normal stage acknowledges the retraction but does not move (a jammed or disabled motor):
+    the safe state is judged on the measured Fn, so the run says the load is still on."""
+    out = tmp_path / "jammed.h5"
+    controls = Controls()
+    runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    while stage.position_m() < x0 + 20e-6:
+        time.sleep(0.005)
+    rig.devices.normal_stage.move_absolute = lambda *a, **k: None  # acknowledged, never executed
+    controls.abort("test: abort with a jammed normal stage")
+    th.join(timeout=60)
+    outcome = result[0]
+    assert outcome.status == "aborted"
+    assert "the normal load is still on" in outcome.error
+    assert rig.sim.rig.state.fn_N > 250.0  # indeed still loaded: the report is true
+    _, error, _ = status_of(out)
+    assert "the normal load is still on" in error
