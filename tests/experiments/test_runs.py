@@ -40,6 +40,18 @@ def rig():
         yield r
 
 
+def start_and_wait_for_slide(runner: Runner, stage, slide_m: float) -> tuple[threading.Thread, list]:
+    """Start ``runner`` in a thread; return once the tangential stage has slid ``slide_m`` (or 60 s)."""
+    result: list = []
+    th = threading.Thread(target=lambda: result.append(runner.run()))
+    th.start()
+    x0 = stage.position_m()
+    deadline = time.monotonic() + 60
+    while stage.position_m() < x0 + slide_m and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return th, result
+
+
 def status_of(path: Path) -> tuple[str, str, list[str]]:
     with h5py.File(path, "r", swmr=True) as f:
         return (f["entry/status"][()].decode(), f["entry/error"][()].decode(),
@@ -72,14 +84,8 @@ def test_pause_stops_the_slide_and_resume_finishes_it(rig, tmp_path):
     out = tmp_path / "paused.h5"
     controls = Controls()
     runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
-    result: list = []
-    th = threading.Thread(target=lambda: result.append(runner.run()))
-    th.start()
     stage = rig.devices.tangential_stage
-    x0 = stage.position_m()
-    deadline = time.monotonic() + 60
-    while stage.position_m() < x0 + 30e-6 and time.monotonic() < deadline:
-        time.sleep(0.005)
+    th, result = start_and_wait_for_slide(runner, stage, 30e-6)
     controls.pause()
     time.sleep(0.3)
     held = stage.position_m()
@@ -98,13 +104,8 @@ def test_abort_brings_the_rig_to_a_safe_state(rig, tmp_path):
     out = tmp_path / "aborted.h5"
     controls = Controls()
     runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
-    result: list = []
-    th = threading.Thread(target=lambda: result.append(runner.run()))
-    th.start()
     stage = rig.devices.tangential_stage
-    x0 = stage.position_m()
-    while stage.position_m() < x0 + 30e-6:
-        time.sleep(0.005)
+    th, result = start_and_wait_for_slide(runner, stage, 30e-6)
     controls.abort("operator pressed stop")
     th.join(timeout=60)
     outcome = result[0]
@@ -120,13 +121,8 @@ def test_abort_brings_the_rig_to_a_safe_state(rig, tmp_path):
 def test_a_device_that_stops_answering_fails_the_run_safely(rig, tmp_path):
     out = tmp_path / "dead.h5"
     runner = make_runner(rig, "tlre", SHORT_TLRE, out)
-    result: list = []
-    th = threading.Thread(target=lambda: result.append(runner.run()))
-    th.start()
     stage = rig.devices.tangential_stage
-    x0 = stage.position_m()
-    while stage.position_m() < x0 + 20e-6:
-        time.sleep(0.005)
+    th, result = start_and_wait_for_slide(runner, stage, 20e-6)
     rig.sim.faults["daq"].silent = True
     t_fault = time.monotonic()
     t_stopped: list[float] = []
@@ -171,13 +167,8 @@ def test_a_stage_that_stops_answering_fails_the_run_and_the_load_is_released(rig
     load (the one thing still reachable) is released, the data before the fault is kept."""
     out = tmp_path / "dead_stage.h5"
     runner = make_runner(rig, "tlre", SHORT_TLRE, out)
-    result: list = []
-    th = threading.Thread(target=lambda: result.append(runner.run()))
-    th.start()
     stage = rig.devices.tangential_stage
-    x0 = stage.position_m()
-    while stage.position_m() < x0 + 20e-6:
-        time.sleep(0.005)
+    th, result = start_and_wait_for_slide(runner, stage, 20e-6)
     rig.sim.faults["tangential_stage"].silent = True
     t_fault = time.monotonic()
     th.join(timeout=60)
@@ -199,13 +190,8 @@ def test_a_release_that_does_not_happen_is_reported_from_the_measured_force(rig,
     out = tmp_path / "jammed.h5"
     controls = Controls()
     runner = make_runner(rig, "tlre", SHORT_TLRE, out, controls=controls)
-    result: list = []
-    th = threading.Thread(target=lambda: result.append(runner.run()))
-    th.start()
     stage = rig.devices.tangential_stage
-    x0 = stage.position_m()
-    while stage.position_m() < x0 + 20e-6:
-        time.sleep(0.005)
+    th, result = start_and_wait_for_slide(runner, stage, 20e-6)
     rig.devices.normal_stage.move_absolute = lambda *a, **k: None  # acknowledged, never executed
     controls.abort("test: abort with a jammed normal stage")
     th.join(timeout=60)
