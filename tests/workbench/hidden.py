@@ -8,6 +8,8 @@ library is the benchmark's job), so every library effect is exercised in a few s
 
 from __future__ import annotations
 
+import textwrap
+
 from rigctl.model import build_model
 from rigctl.model.effects import LIBRARY
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
@@ -64,3 +66,21 @@ def assert_found(effect: str, diag: Diagnosis) -> None:
     assert r0.verdict.verdict == effect, [(s.effect, s.error, s.delta_bic) for s in r0.ranking]
     assert hidden.error_reduction >= 0.5, hidden
     assert hidden.significant
+
+
+# A plug-in effect written to a file by the plug-in tests (CLI and Python API).
+PLUGIN = textwrap.dedent('''
+    """A force sensor whose zero drifts linearly in time (thermal drift of the bridge)."""
+    from rigctl.model import Effect, ParamSpec
+
+
+    class ForceSensorDrift(Effect):
+        name = "force_sensor_drift"
+        summary = "the force sensor's zero drifts linearly with time"
+        signature = "peaks and troughs drift with time while stick times stay"
+        reveal_protocol = "a long hold at zero tangential load recording Ft"
+        params = (ParamSpec("rate_N_per_s", 0.01, -1.0, 1.0, "N/s", "zero drift rate", off=0.0),)
+
+        def transform_output(self, result, values):
+            result.ft_N += values["rate_N_per_s"] * (result.t_s - result.t_s[0])
+''')

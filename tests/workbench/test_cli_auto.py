@@ -7,31 +7,15 @@ add it, and then stop because nothing significant is left.
 from __future__ import annotations
 
 import json
-import textwrap
 
 import pytest
 
 from rigctl.cli.main import main
 from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
+from tests.workbench.hidden import PLUGIN
 
 CANDIDATES = "interface_damping,probe_drift,wear,contact_degradation"
-
-PLUGIN = textwrap.dedent('''
-    """A force sensor whose zero drifts linearly in time (thermal drift of the bridge)."""
-    from rigctl.model import Effect, ParamSpec
-
-
-    class ForceSensorDrift(Effect):
-        name = "force_sensor_drift"
-        summary = "the force sensor's zero drifts linearly with time"
-        signature = "peaks and troughs drift with time while stick times stay"
-        reveal_protocol = "a long hold at zero tangential load recording Ft"
-        params = (ParamSpec("rate_N_per_s", 0.01, -1.0, 1.0, "N/s", "zero drift rate", off=0.0),)
-
-        def transform_output(self, result, values):
-            result.ft_N += values["rate_N_per_s"] * (result.t_s - result.t_s[0])
-''')
 
 
 @pytest.fixture(scope="module")

@@ -2,31 +2,13 @@
 
 from __future__ import annotations
 
-import textwrap
-
 from rigctl.model import build_model
 from rigctl.model.plugins import load_effect_file
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.model_choice import ModelChoice
-from tests.workbench.hidden import TEST_BASE
-
-PLUGIN = textwrap.dedent('''
-    """A force sensor whose zero drifts linearly in time (thermal drift of the bridge)."""
-    from rigctl.model import Effect, ParamSpec
-
-
-    class ForceSensorDrift(Effect):
-        name = "force_sensor_drift"
-        summary = "the force sensor's zero drifts linearly with time"
-        signature = "peaks and troughs drift with time while stick times stay"
-        reveal_protocol = "a long hold at zero tangential load recording Ft"
-        params = (ParamSpec("rate_N_per_s", 0.01, -1.0, 1.0, "N/s", "zero drift rate", off=0.0),)
-
-        def transform_output(self, result, values):
-            result.ft_N += values["rate_N_per_s"] * (result.t_s - result.t_s[0])
-''')
+from tests.workbench.hidden import PLUGIN, TEST_BASE
 
 
 def test_control_without_hidden_effect_gives_none():
