@@ -61,17 +61,14 @@ class Pacer:
         self._stop.set()
         self._thread.join(timeout=5.0)
 
-    def _lag_s(self) -> float:
-        """Rig time minus the newest recorded sample, on the rig's time axis.
+    def _lag_s(self, t_data: float) -> float:
+        """Rig time minus the newest recorded sample (``t_data``), on the rig's time axis.
 
         The data's time axis starts when the DAQ stream started; the offset between the two axes is
         the minimum of (rig time - data time) seen so far: every observation is the offset plus a
         lag >= 0, so the minimum only ever over-estimates how far the data may fall behind by the
         smallest lag seen, and pacing can never wait for data the rig has not produced yet.
         """
-        if self._data_time is None:
-            return 0.0
-        t_data = self._data_time()
         if t_data != t_data:  # NaN: no data yet, let the rig run to produce some
             return 0.0
         observed = self.rig.t_s - t_data
@@ -86,9 +83,9 @@ class Pacer:
                 if self._data_time is None:
                     self._stop.wait(0.001)
                     continue
-                lag = self._lag_s()
-                now = time.monotonic()
                 t_data = self._data_time()
+                lag = self._lag_s(t_data)
+                now = time.monotonic()
                 if t_data == t_data and t_data != last_data:
                     last_data, last_progress = t_data, now
                 if lag > self.max_lag_s:
