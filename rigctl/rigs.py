@@ -44,6 +44,7 @@ class Pacer:
         self.max_lag_s = max_lag_s
         self._data_time: Callable[[], float] | None = None
         self._offset: float | None = None
+        self._t_follow = 0.0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sim-pacer", daemon=True)
         self.error: BaseException | None = None
@@ -51,6 +52,7 @@ class Pacer:
     def follow(self, data_time: Callable[[], float]) -> None:
         """Pace against ``data_time()`` (device time of the newest recorded sample, NaN before)."""
         self._offset = None
+        self._t_follow = self.rig.t_s
         self._data_time = data_time
 
     def start(self) -> Pacer:
@@ -69,8 +71,8 @@ class Pacer:
         lag >= 0, so the minimum only ever over-estimates how far the data may fall behind by the
         smallest lag seen, and pacing can never wait for data the rig has not produced yet.
         """
-        if t_data != t_data:  # NaN: no data yet, let the rig run to produce some
-            return 0.0
+        if t_data != t_data:  # NaN: no data yet: run ahead of where pacing began, but no further
+            return self.rig.t_s - self._t_follow
         observed = self.rig.t_s - t_data
         self._offset = observed if self._offset is None else min(self._offset, observed)
         return observed - self._offset
