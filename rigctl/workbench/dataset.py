@@ -231,7 +231,7 @@ def protocols_present(dataset: Dataset) -> list[str]:
         found.append("velocity steps")
     holds = False
     for r in dataset.runs:
-        is_hold = r.drive.is_hold
+        is_hold = r.drive.phase_is_hold
         moving = np.flatnonzero(~is_hold)
         if moving.size and np.any(is_hold[moving[0] : moving[-1] + 1]):
             holds = True

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -31,7 +32,8 @@ from rigctl.data import DataError, MeasuredRun
 from rigctl.workbench.signals import FloatArray, noise_sigma
 
 HOLD_VELOCITY_FRACTION = 0.002
-"""A segment whose speed is below this fraction of the run's fastest segment is a hold (velocity
+"""A segment whose speed is below this fraction of the run's sliding speed (``reference_speed``) is
+a hold (velocity
 steps span two decades, so a slow step of 1 % of the fastest must stay a slide); so is a segment
 over which the stage moves less than the simplification tolerance (set exactly at rest)."""
 
@@ -56,22 +58,48 @@ class DriveProfile:
     def is_hold(self) -> np.ndarray:
         """True for segments where the stage rests."""
         v = np.abs(self.velocity_m_per_s)
-        vmax = float(v.max()) if v.size else 0.0
-        return np.asarray((v == 0.0) | (v <= HOLD_VELOCITY_FRACTION * vmax))
+        v_ref = reference_speed(v, np.diff(self.t_s))
+        return np.asarray((v == 0.0) | (v <= HOLD_VELOCITY_FRACTION * v_ref))
 
-    @property
-    def moving_velocities(self) -> FloatArray:
-        v = self.velocity_m_per_s
-        out: FloatArray = v[~self.is_hold]
-        return out
-
-    def segment_index(self, t_rel_s: FloatArray) -> np.ndarray:
-        """Index of the segment holding each (relative) time."""
+    def knot_index(self, t_rel_s: FloatArray) -> np.ndarray:
+        """Index of the straight piece of the drive (between two knots) holding each time."""
         idx = np.searchsorted(self.t_s, t_rel_s, side="right") - 1
         return np.clip(idx, 0, self.t_s.shape[0] - 2)
 
+    @cached_property
+    def phase_knots(self) -> np.ndarray:
+        """Knot indices where the protocol's phases begin, and the last knot (see _phases)."""
+        return _phases(self)
+
+    def segment_index(self, t_rel_s: FloatArray) -> np.ndarray:
+        """Index of the protocol phase (constant velocity and load, or a hold) holding each time."""
+        starts = self.t_s[self.phase_knots[:-1]]
+        idx = np.searchsorted(starts, t_rel_s, side="right") - 1
+        return np.clip(idx, 0, starts.shape[0] - 1)
+
+    @property
+    def phase_velocity(self) -> FloatArray:
+        """Mean stage velocity of each phase."""
+        k = self.phase_knots
+        out: FloatArray = np.diff(self.x_stage_m[k]) / np.diff(self.t_s[k])
+        return out
+
+    @property
+    def phase_is_hold(self) -> np.ndarray:
+        """True for phases where the stage rests."""
+        k = self.phase_knots
+        rest = self.is_hold
+        return np.array([bool(np.all(rest[a:b])) for a, b in zip(k[:-1], k[1:], strict=True)])
+
+    @property
+    def moving_velocities(self) -> FloatArray:
+        """Mean velocities of the phases where the stage slides."""
+        out: FloatArray = self.phase_velocity[~self.phase_is_hold]
+        return out
+
     def velocity_at(self, t_rel_s: FloatArray) -> FloatArray:
-        out: FloatArray = self.velocity_m_per_s[self.segment_index(t_rel_s)]
+        """Mean stage velocity of the phase holding each time."""
+        out: FloatArray = self.phase_velocity[self.segment_index(t_rel_s)]
         return out
 
     def fn_at(self, t_rel_s: FloatArray) -> FloatArray:
@@ -90,12 +118,119 @@ class DriveProfile:
         return float(np.sum((hi - lo)[self.is_hold]))
 
     def last_change_before(self, t_rel_s: float) -> float:
-        """Start of the segment holding ``t_rel_s`` (where the current loading began)."""
+        """Start of the phase holding ``t_rel_s`` (where the current loading began)."""
         k = int(self.segment_index(np.array([t_rel_s]))[0])
-        return float(self.t_s[k])
+        return float(self.t_s[self.phase_knots[k]])
+
+    def phase_end(self, t_rel_s: float) -> float:
+        """End of the phase holding ``t_rel_s``."""
+        k = int(self.segment_index(np.array([t_rel_s]))[0])
+        return float(self.t_s[self.phase_knots[k + 1]])
 
     def n_segments(self) -> int:
-        return int(self.t_s.shape[0] - 1)
+        """Number of protocol phases."""
+        return int(self.phase_knots.shape[0] - 1)
+
+    def x_at(self, t_rel_s: FloatArray) -> FloatArray:
+        """Stage position (simplified drive) at relative times."""
+        out: FloatArray = np.interp(t_rel_s, self.t_s, self.x_stage_m)
+        return out
+
+    def travel_between(self, t_a: float, t_b: float) -> float:
+        """Path length of the stage over [t_a, t_b] (relative times; back and forth both count)."""
+        lo = np.clip(self.t_s[:-1], t_a, t_b)
+        hi = np.clip(self.t_s[1:], t_a, t_b)
+        return float(np.sum(np.abs(self.velocity_m_per_s) * (hi - lo)))
+
+    def steady_slide_between(self, t_a: float, t_b: float) -> bool:
+        """True when the stage slides without rest or reversal over [t_a, t_b] (the velocity may
+        change): the stick loading is then a straight line in stage position across the corners."""
+        ks = np.arange(int(self.knot_index(np.array([t_a]))[0]),
+                       int(self.knot_index(np.array([t_b]))[0]) + 1)
+        v = self.velocity_m_per_s[ks]
+        return bool(not np.any(self.is_hold[ks]) and (np.all(v > 0) or np.all(v < 0)))
+
+
+def reference_speed(speed: FloatArray, dt: FloatArray, moving: np.ndarray | None = None) -> float:
+    """The run's sliding speed that holds are judged against: the 90th percentile of the segments'
+    speeds weighted by their duration (segments that move at all). Not the fastest segment: a
+    protocol's repositioning strokes (the TLRE's return at 1.4 mm/s) would make its 1.3 um/s slide
+    look like a rest."""
+    sel = speed > 0.0 if moving is None else (moving & (speed > 0.0))
+    if not np.any(sel):
+        return 0.0
+    sp, w = speed[sel], dt[sel]
+    order = np.argsort(sp)
+    cum = np.cumsum(w[order])
+    k = int(np.searchsorted(cum, REFERENCE_SPEED_QUANTILE * cum[-1]))
+    return float(sp[order][min(k, sp.size - 1)])
+
+
+REFERENCE_SPEED_QUANTILE = 0.9
+
+
+PHASE_SHIFT_S = 1.0
+"""A change of velocity starts a new protocol phase when the stage departs from one straight line
+by more than it travels in this time at the phase's mean speed (a velocity step of 10 -> 30 um/s
+held 7 s departs by ~35 um, 1.7 s of travel; the jitter of a polled stage position or a stepper's
+uneven steps stays well below)."""
+
+PHASE_HOLD_MIN_S = 0.5
+"""Rests or reversals no longer than this inside a slide (a stage that stalls between polls, position
+jitter) are not phases."""
+
+PHASE_FN_FRACTION = 0.05
+"""A change of the normal load by more than this fraction of the run's largest starts a phase."""
+
+
+def _phases(drive: DriveProfile) -> np.ndarray:
+    """Knot indices where the protocol phases begin, plus the last knot.
+
+    The knots follow the measured drive closely (a few noise RMS), so on a jittery stage record
+    (polled positions, stepper motors) they come every second or so; comparing events within such
+    pieces would pair nothing. Phases are what the protocol did: a hold (at least PHASE_HOLD_MIN_S),
+    a slide in one direction at one velocity (PHASE_SHIFT_S), one normal load (PHASE_FN_FRACTION).
+    """
+    n = drive.t_s.shape[0] - 1
+    if n <= 1:
+        return np.array([0, n], dtype=np.intp)
+    v = drive.velocity_m_per_s
+    dt = np.diff(drive.t_s)
+    rest = drive.is_hold.copy()
+    kind = np.where(rest, 0, np.sign(v)).astype(np.int8)
+    # short rests or reversals inside a slide in one direction (a stage stalling between polls,
+    # position jitter) are part of the slide
+    k = 0
+    while k < n:
+        j = k
+        while j < n and kind[j] == kind[k]:
+            j += 1
+        if k > 0 and j < n and kind[k - 1] == kind[j] != 0 \
+                and float(np.sum(dt[k:j])) <= PHASE_HOLD_MIN_S:
+            kind[k:j] = kind[k - 1]
+        k = j
+    fn_mid = 0.5 * (drive.fn_N[:-1] + drive.fn_N[1:])
+    fn_thr = PHASE_FN_FRACTION * max(float(np.max(np.abs(drive.fn_N))), 1e-9)
+    starts = [0]
+    for k in range(1, n):
+        if kind[k] != kind[k - 1] or abs(fn_mid[k] - fn_mid[starts[-1]]) > fn_thr:
+            starts.append(k)
+    starts.append(n)
+    # within a slide: velocity changes by the departure from one straight line
+    out: list[int] = []
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        out.append(a)
+        if kind[a] == 0 or b - a < 2:
+            continue
+        span = drive.t_s[b] - drive.t_s[a]
+        v_mean = abs(drive.x_stage_m[b] - drive.x_stage_m[a]) / span if span > 0 else 0.0
+        if v_mean <= 0.0:
+            continue
+        idx = douglas_peucker(drive.t_s[a : b + 1], drive.x_stage_m[a : b + 1],
+                              v_mean * PHASE_SHIFT_S)
+        out.extend(int(a + i) for i in idx[1:-1])
+    out.append(n)
+    return np.array(sorted(set(out)), dtype=np.intp)
 
 
 def _quantum(x: FloatArray) -> float:
@@ -300,8 +435,8 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     ft, fv = _fit_channel(t, fn, fn_tol)
     # holds: the stage rests exactly
     v = np.diff(xv) / np.diff(xt)
-    vmax = float(np.max(np.abs(v))) if v.size else 0.0
-    rest = (np.abs(v) <= HOLD_VELOCITY_FRACTION * vmax) | (np.abs(np.diff(xv)) <= x_tol)
+    v_ref = reference_speed(np.abs(v), np.diff(xt), np.abs(np.diff(xv)) > x_tol)
+    rest = (np.abs(v) <= HOLD_VELOCITY_FRACTION * v_ref) | (np.abs(np.diff(xv)) <= x_tol)
     for k in np.flatnonzero(rest):
         mean = 0.5 * (xv[k] + xv[k + 1])
         xv[k] = xv[k + 1] = mean

@@ -13,8 +13,9 @@ feature                   unit    definition
 ``peak_N``                N       Ft at the drop from the pre-drop ramp line
 ``trough_N``              N       settled post-slip Ft line at the drop
 ``drop_N``                N       peak - trough
-``stick_s``               s       time since the previous drop (the recurrence; the first
-                                  event counts from the start of motion)
+``stick_s``               s       stick duration: stage travel since the previous drop (the
+                                  first event: since the start of motion) / drive velocity
+                                  at the drop (= the recurrence time at constant velocity)
 ``rate_N_per_s``          N/s     stick loading rate dFt/dt (early part of the loading ramp)
 ``k_stick_N_per_m``       N/m     K(i) of the paper: dFt/d(delta) on the same part, from the
                                   regression of delta on Ft (Ft is the less noisy variable)
@@ -108,6 +109,20 @@ def _drop_time(t: FloatArray, f: FloatArray, i_pk: int, i_end: int, level: float
     return float(t[k - 1] + frac * (t[k] - t[k - 1]))
 
 
+def _stick_duration(drive: DriveProfile, t_prev: float, t_drop: float) -> float:
+    """Stick duration at the drive velocity of the drop: the stage travel since the previous drop
+    (or the start of motion) divided by that velocity. At constant velocity this is the time
+    between the drops; across a velocity step or a hold it measures the loading the stick took,
+    whatever the phase of the cycle at the step (the time would jump with it). Falls back to the
+    time when the stage rests at the drop."""
+    v = abs(float(drive.velocity_at(np.array([t_drop]))[0]))
+    k = int(drive.segment_index(np.array([t_drop]))[0])
+    travel = drive.travel_between(t_prev, t_drop)
+    if drive.phase_is_hold[k] or v <= 0.0 or travel <= 0.0:
+        return t_drop - t_prev
+    return travel / v
+
+
 def extract_events(
     t_s: FloatArray,
     ft_N: FloatArray,
@@ -153,6 +168,7 @@ def extract_events(
         return int(np.searchsorted(t, time))
 
     t_run_end = float(t[-1])
+    x_drive = drive.x_at(t)
     # the last slip's settled level needs at least half a typical cycle of record after it
     min_tail = 0.5 * float(np.median(np.diff(t_drop))) if n_ev >= 3 else 0.3
     for j in range(n_ev):
@@ -172,16 +188,27 @@ def extract_events(
         pre_len = min(0.15 * length, 0.3) if length > 0 else 0.0
         i_pre0, i_pre1 = idx(td - max(pre_len, 8 * dt)), i_pk + 1
         i_post0, i_post1 = idx(td + settle), idx(td + settle + after_len)
+        # the settled post-slip line is read against the stage position when the stage changes
+        # velocity inside the window (stick loading is linear in stage travel, not in time), and
+        # up to the change when it stops or reverses there: a line in time across a velocity step
+        # would bend the extrapolated trough by where in the cycle the step fell
+        post_axis, post_at = t, td
+        k_td = int(drive.segment_index(np.array([td]))[0])
+        if i_post1 > i_post0 and int(drive.segment_index(t[i_post1 - 1 : i_post1])[0]) != k_td:
+            if drive.steady_slide_between(td, float(t[i_post1 - 1])):
+                post_axis, post_at = x_drive, float(drive.x_at(np.array([td]))[0])
+            else:
+                i_post1 = min(i_post1, idx(drive.phase_end(td)))
         peak, _ = line_fit(t, ft_N, i_pre0, i_pre1, td)
-        trough, _ = line_fit(t, ft_N, i_post0, i_post1, td)
+        trough, slope_after = line_fit(post_axis, ft_N, i_post0, i_post1, post_at)
         d_pk, _ = line_fit(t, delta_m, i_pre0, i_pre1, td)
-        d_after, _ = line_fit(t, delta_m, i_post0, i_post1, td)
+        d_after, _ = line_fit(post_axis, delta_m, i_post0, i_post1, post_at)
         fn_pk, _ = line_fit(t, fn_N, i_pre0, i_pre1, td)
-        fn_after, _ = line_fit(t, fn_N, i_post0, i_post1, td)
+        fn_after, _ = line_fit(post_axis, fn_N, i_post0, i_post1, post_at)
         feats["peak_N"][j] = peak
         feats["trough_N"][j] = trough
         feats["drop_N"][j] = s * (peak - trough)
-        feats["stick_s"][j] = td - prev_td
+        feats["stick_s"][j] = _stick_duration(drive, prev_td, td)
         if d_ok(i_pre0, i_pre1) and d_ok(i_post0, i_post1):
             feats["slip_m"][j] = s * (d_after - d_pk)
         feats["fn_swing_N"][j] = fn_pk - fn_after
@@ -208,10 +235,9 @@ def extract_events(
         # the drop itself: ringing about the settled line and sharpness
         if np.isfinite(trough) and np.isfinite(feats["drop_N"][j]) and feats["drop_N"][j] > 0:
             i_r0, i_r1 = idx(td + dt), idx(td + settle)
-            _, slope_after = line_fit(t, ft_N, i_post0, i_post1, td)
             if i_r1 - i_r0 >= 4 and np.isfinite(slope_after):
                 tr = t[i_r0:i_r1]
-                dev = ft_N[i_r0:i_r1] - (trough + slope_after * (tr - td))
+                dev = ft_N[i_r0:i_r1] - (trough + slope_after * (post_axis[i_r0:i_r1] - post_at))
                 # weights ramp up over one sample from td + 1.5 dt, so the window start moves
                 # continuously with the drop time instead of jumping a whole sample
                 wgt = np.clip((tr - td - 1.5 * dt) / dt, 0.0, 1.0)
