@@ -8,9 +8,12 @@ from tests.workbench.hidden import assert_found, hidden_effect_diagnosis
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "weak signature in this campaign: diagnose names stribeck (delta BIC -24, significant), and "
-    "the model with the true parameters now scores 0.45 (the drive's corner times are refined), "
-    "but the identified base model absorbs much of the weakening by shifting mu_k (error 1.88) "
-    "and the candidate fit stops at v_s = 1.5 mm/s (true 7.5) with error 1.18: a 37 % cut"))
+    "signature at the noise floor in this campaign: diagnose names stribeck (delta BIC -11, "
+    "significant); the base model already scores 1.15 (E ~ 1 is 'within the scatter') and "
+    "base + stribeck 0.89, a 22 % cut. The generating parameters score 0.45 only at exactly "
+    "their values (the model then repeats the data's sampling phase); 0.1-0.6 % off in v_s or "
+    "mu_k they score 0.73-1.29, so no fit can halve 1.15. In this engine Stribeck acts on the "
+    "slip velocity (mm/s), not on drive velocities of 10-100 um/s: a velocity-step campaign "
+    "barely shows it at 1024 Hz"))
 def test_hidden_stribeck_is_found():
     assert_found("stribeck", hidden_effect_diagnosis("stribeck", 204))
