@@ -33,9 +33,9 @@ from rigctl.workbench.signals import FloatArray, noise_sigma
 
 HOLD_VELOCITY_FRACTION = 0.002
 """A segment whose speed is below this fraction of the run's sliding speed (``reference_speed``) is
-a hold (velocity
-steps span two decades, so a slow step of 1 % of the fastest must stay a slide); so is a segment
-over which the stage moves less than the simplification tolerance (set exactly at rest)."""
+a hold (velocity steps span two decades, so a slow step of 1 % of the fastest must stay a slide);
+so is a segment over which the stage moves less than the simplification tolerance (set exactly at
+rest)."""
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,9 @@ class DriveProfile:
         out: FloatArray = np.diff(self.x_stage_m) / np.diff(self.t_s)
         return out
 
-    @property
+    @cached_property
     def is_hold(self) -> np.ndarray:
-        """True for segments where the stage rests."""
+        """True for segments where the stage rests (computed once: the profile does not change)."""
         v = np.abs(self.velocity_m_per_s)
         v_ref = reference_speed(v, np.diff(self.t_s))
         return np.asarray((v == 0.0) | (v <= HOLD_VELOCITY_FRACTION * v_ref))
@@ -77,14 +77,14 @@ class DriveProfile:
         idx = np.searchsorted(starts, t_rel_s, side="right") - 1
         return np.clip(idx, 0, starts.shape[0] - 1)
 
-    @property
+    @cached_property
     def phase_velocity(self) -> FloatArray:
         """Mean stage velocity of each phase."""
         k = self.phase_knots
         out: FloatArray = np.diff(self.x_stage_m[k]) / np.diff(self.t_s[k])
         return out
 
-    @property
+    @cached_property
     def phase_is_hold(self) -> np.ndarray:
         """True for phases where the stage rests."""
         k = self.phase_knots
@@ -111,11 +111,14 @@ class DriveProfile:
         moving = np.flatnonzero(~self.is_hold)
         return float(self.t_s[moving[0]]) if moving.size else float(self.t_s[-1])
 
+    def _time_within(self, t_a: float, t_b: float) -> FloatArray:
+        """Seconds of each segment that fall inside [t_a, t_b] (relative times)."""
+        out: FloatArray = np.clip(self.t_s[1:], t_a, t_b) - np.clip(self.t_s[:-1], t_a, t_b)
+        return out
+
     def hold_time_between(self, t_a: float, t_b: float) -> float:
         """Seconds of stage rest inside [t_a, t_b] (relative times)."""
-        lo = np.clip(self.t_s[:-1], t_a, t_b)
-        hi = np.clip(self.t_s[1:], t_a, t_b)
-        return float(np.sum((hi - lo)[self.is_hold]))
+        return float(np.sum(self._time_within(t_a, t_b)[self.is_hold]))
 
     def last_change_before(self, t_rel_s: float) -> float:
         """Start of the phase holding ``t_rel_s`` (where the current loading began)."""
@@ -138,9 +141,7 @@ class DriveProfile:
 
     def travel_between(self, t_a: float, t_b: float) -> float:
         """Path length of the stage over [t_a, t_b] (relative times; back and forth both count)."""
-        lo = np.clip(self.t_s[:-1], t_a, t_b)
-        hi = np.clip(self.t_s[1:], t_a, t_b)
-        return float(np.sum(np.abs(self.velocity_m_per_s) * (hi - lo)))
+        return float(np.sum(np.abs(self.velocity_m_per_s) * self._time_within(t_a, t_b)))
 
     def steady_slide_between(self, t_a: float, t_b: float) -> bool:
         """True when the stage slides without rest or reversal over [t_a, t_b] (the velocity may
@@ -149,6 +150,10 @@ class DriveProfile:
                        int(self.knot_index(np.array([t_b]))[0]) + 1)
         v = self.velocity_m_per_s[ks]
         return bool(not np.any(self.is_hold[ks]) and (np.all(v > 0) or np.all(v < 0)))
+
+
+REFERENCE_SPEED_QUANTILE = 0.9
+"""Quantile (by duration) of the segments' speeds taken as the run's sliding speed."""
 
 
 def reference_speed(speed: FloatArray, dt: FloatArray, moving: np.ndarray | None = None) -> float:
@@ -164,9 +169,6 @@ def reference_speed(speed: FloatArray, dt: FloatArray, moving: np.ndarray | None
     cum = np.cumsum(w[order])
     k = int(np.searchsorted(cum, REFERENCE_SPEED_QUANTILE * cum[-1]))
     return float(sp[order][min(k, sp.size - 1)])
-
-
-REFERENCE_SPEED_QUANTILE = 0.9
 
 
 PHASE_SHIFT_S = 1.0

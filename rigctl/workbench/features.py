@@ -115,8 +115,8 @@ def _stick_duration(drive: DriveProfile, t_prev: float, t_drop: float) -> float:
     between the drops; across a velocity step or a hold it measures the loading the stick took,
     whatever the phase of the cycle at the step (the time would jump with it). Falls back to the
     time when the stage rests at the drop."""
-    v = abs(float(drive.velocity_at(np.array([t_drop]))[0]))
     k = int(drive.segment_index(np.array([t_drop]))[0])
+    v = abs(float(drive.phase_velocity[k]))
     travel = drive.travel_between(t_prev, t_drop)
     if drive.phase_is_hold[k] or v <= 0.0 or travel <= 0.0:
         return t_drop - t_prev
@@ -192,11 +192,14 @@ def extract_events(
         # velocity inside the window (stick loading is linear in stage travel, not in time), and
         # up to the change when it stops or reverses there: a line in time across a velocity step
         # would bend the extrapolated trough by where in the cycle the step fell
+        # the stage from the simplified drive (the encoder's quantisation steps would otherwise
+        # show as a slow sawtooth in the lag)
+        xs_td = float(drive.x_at(np.array([td]))[0])
         post_axis, post_at = t, td
         k_td = int(drive.segment_index(np.array([td]))[0])
         if i_post1 > i_post0 and int(drive.segment_index(t[i_post1 - 1 : i_post1])[0]) != k_td:
             if drive.steady_slide_between(td, float(t[i_post1 - 1])):
-                post_axis, post_at = x_drive, float(drive.x_at(np.array([td]))[0])
+                post_axis, post_at = x_drive, xs_td
             else:
                 i_post1 = min(i_post1, idx(drive.phase_end(td)))
         peak, _ = line_fit(t, ft_N, i_pre0, i_pre1, td)
@@ -212,11 +215,8 @@ def extract_events(
         if d_ok(i_pre0, i_pre1) and d_ok(i_post0, i_post1):
             feats["slip_m"][j] = s * (d_after - d_pk)
         feats["fn_swing_N"][j] = fn_pk - fn_after
-        # the stage from the simplified drive (the encoder's quantisation steps would otherwise
-        # show as a slow sawtooth in the lag)
-        xs_pk = float(np.interp(td, drive.t_s, drive.x_stage_m))
         if d_ok(i_pre0, i_pre1):
-            feats["lag_m"][j] = xs_pk - d_pk
+            feats["lag_m"][j] = xs_td - d_pk
 
         # loading ramp: early slope, K(i), rounding
         if length > 20 * dt:
