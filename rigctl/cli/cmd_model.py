@@ -194,7 +194,11 @@ def run_diagnose(args: argparse.Namespace) -> int:
     if args.report:
         cmp = compare(runs, diag.first.model.choice, identify=False, dataset=dataset)
         cmp.fit = diag.first.model
-        path = write_diagnose_report(diag, cmp, args.report)
+        final_cmp = None
+        if len(diag.steps) > 1:  # --auto added effects: show the final model too
+            final_cmp = compare(runs, diag.final_model.choice, identify=False, dataset=dataset)
+            final_cmp.fit = diag.final_model
+        path = write_diagnose_report(diag, cmp, args.report, final_cmp)
         if not args.json:
             print(f"report: {path}")
     if args.json:

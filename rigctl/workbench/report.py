@@ -34,14 +34,18 @@ def _table(header: list[str], rows: Sequence[Sequence[object]]) -> str:
     return "\n".join(out)
 
 
-def _comparison_sections(cmp: Comparison, folder: Path) -> list[str]:
+def _comparison_sections(cmp: Comparison, folder: Path, *, prefix: str = "",
+                         title: str | None = None, anchor: str | None = None) -> list[str]:
+    """The HTML of one model against the measurement; its PNGs are ``folder/<prefix><name>.png``
+    (a distinct ``prefix`` per section keeps two models' figures apart in one folder). ``title``
+    replaces the heading's "Model <label>"; ``anchor`` wraps the section in ``<section id=...>``."""
     res = cmp.results
+    ev = cmp.evaluation.events
     figs = [
-        plots.overlay_time(cmp.runs, res, cmp.dataset, cmp.evaluation.events,
-                           folder / "overlay_time.png"),
-        plots.loops(cmp.runs, res, cmp.dataset, cmp.evaluation.events, folder / "loops.png"),
-        plots.features(cmp.dataset, cmp.evaluation.events, folder / "features.png"),
-        plots.residual_heatmap(cmp.rmap, folder / "residual_map.png"),
+        plots.overlay_time(cmp.runs, res, cmp.dataset, ev, folder / f"{prefix}overlay_time.png"),
+        plots.loops(cmp.runs, res, cmp.dataset, ev, folder / f"{prefix}loops.png"),
+        plots.features(cmp.dataset, ev, folder / f"{prefix}features.png"),
+        plots.residual_heatmap(cmp.rmap, folder / f"{prefix}residual_map.png"),
     ]
     feat_rows = [
         [FEATURES[name].phrase, cmp.fit.feature_error.get(name, math.nan), fe.rms, fe.mean,
@@ -56,8 +60,9 @@ def _comparison_sections(cmp: Comparison, folder: Path) -> list[str]:
     ]
     disc = "".join(f"<li>{html.escape(s)}</li>" for s in cmp.discrepancies) or \
         "<li>no structured discrepancy above the scatter</li>"
-    return [
-        f"<h2>Model {html.escape(cmp.fit.choice.label())}: error {cmp.fit.error:.3g}</h2>",
+    heading = title if title is not None else f"Model {cmp.fit.choice.label()}"
+    body = [
+        f"<h2>{html.escape(heading)}: error {cmp.fit.error:.3g}</h2>",
         "<p>Error E: RMS over features of block-averaged event residuals in units of the "
         "measurement's event-to-event scatter (about 1 = within the scatter; docs/workbench.md)."
         "</p>",
@@ -71,6 +76,9 @@ def _comparison_sections(cmp: Comparison, folder: Path) -> list[str]:
         "<h3>Parameters</h3>",
         _table(["parameter", "value", "1-sigma", "unit", "fitted", "note"], par_rows),
     ]
+    if anchor is not None:
+        body = [f'<section id="{html.escape(anchor)}">', *body, "</section>"]
+    return body
 
 
 def _page(title: str, body: list[str]) -> str:
@@ -90,8 +98,14 @@ def write_compare_report(cmp: Comparison, folder: str | Path) -> Path:
     return path
 
 
-def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path) -> Path:
-    """``cmp`` is the comparison of the diagnosed (first) model, for overlays and the map."""
+def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path,
+                          final_cmp: Comparison | None = None) -> Path:
+    """``cmp`` is the comparison of the diagnosed (first) model, for overlays and the map.
+
+    ``final_cmp`` (with ``--auto``) is the comparison of ``diag.final_model``, the model after the
+    last added effect: it gets its own section (overlays, loops, features, residual map with
+    ``final_``-prefixed PNGs) after the base model's. It is left out when no effect was added.
+    """
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     r0 = diag.first
@@ -122,7 +136,17 @@ def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path) 
                         [[s.index, s.model, s.added or "", s.error,
                           s.delta_bic if s.delta_bic is not None else math.nan, s.note]
                          for s in diag.steps])]
-    body += _comparison_sections(cmp, out)
+    added = [s.added for s in diag.steps if s.added]
+    if final_cmp is None or not added:
+        body += _comparison_sections(cmp, out)
+    else:
+        body.append('<p>Below: the base model, then the model after the last added effect '
+                    '(<a href="#final-model">jump there</a>).</p>')
+        body += _comparison_sections(cmp, out, title=f"Base model ({cmp.fit.choice.label()})",
+                                     anchor="base-model")
+        body += _comparison_sections(final_cmp, out, prefix="final_",
+                                     title=f"After adding {', '.join(added)}",
+                                     anchor="final-model")
     path = out / "index.html"
     path.write_text(_page("rigctl model diagnose", body), encoding="utf-8")
     return path

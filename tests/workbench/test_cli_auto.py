@@ -11,8 +11,15 @@ import json
 import pytest
 
 from rigctl.cli.main import main
+from rigctl.io.load import load_runs
 from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
+from rigctl.workbench.compare import compare
+from rigctl.workbench.dataset import prepare_dataset
+from rigctl.workbench.diagnose import Diagnosis, Round, Step
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import Verdict, score_candidate
+from rigctl.workbench.report import write_diagnose_report
 from tests.workbench.hidden import PLUGIN
 
 CANDIDATES = "interface_damping,probe_drift,wear,contact_degradation"
@@ -46,6 +53,33 @@ def test_auto_adds_both_hidden_effects_and_the_error_falls(two_effects, tmp_path
     assert all(s["delta_bic"] < -10 for s in steps[1:])
     html = (report / "index.html").read_text()
     assert (report / "error_fall.png").stat().st_size > 5000 and "error_fall.png" in html
+    # the report shows the base model and, next to it, the model after the last added effect
+    base_title = f"Base model ({steps[0]['model']}): error {errors[0]:.3g}"
+    final_title = f"After adding {', '.join(added)}: error {errors[-1]:.3g}"
+    assert base_title in html and final_title in html
+    assert html.index(base_title) < html.index(final_title)
+    final_part = html[html.index('<section id="final-model">'):]
+    for png in ("overlay_time.png", "loops.png", "features.png", "residual_map.png"):
+        base_png, final_png = report / png, report / f"final_{png}"
+        assert f'src="{png}"' in html and f'src="final_{png}"' in final_part
+        assert final_png.stat().st_size > 5000
+        assert final_png.read_bytes() != base_png.read_bytes()  # the final model's own figure
+
+
+def test_a_diagnosis_that_added_nothing_has_no_final_model_section(two_effects, tmp_path):
+    runs = load_runs([two_effects])
+    dataset = prepare_dataset(runs)
+    cmp = compare(runs, ModelChoice("paper"), identify=False, dataset=dataset)
+    score = score_candidate("wear", cmp.fit.error, cmp.fit.error, dataset.n_events, 1)
+    score.explains = "nothing (no improvement)"
+    diag = Diagnosis(dataset, [Round(cmp.fit, [score], Verdict("none", [], None), {}, [])],
+                     steps=[Step(0, cmp.fit.choice.label(), None, cmp.fit.error, None)])
+    # a final comparison handed over anyway is not shown twice: nothing was added
+    html = write_diagnose_report(diag, cmp, tmp_path, final_cmp=cmp).read_text()
+    assert f"Model paper: error {cmp.fit.error:.3g}" in html
+    assert "final-model" not in html and "After adding" not in html and "Base model" not in html
+    assert not list(tmp_path.glob("final_*"))
+    assert (tmp_path / "overlay_time.png").stat().st_size > 5000
 
 
 def test_auto_prints_the_error_at_each_step(two_effects, capsys):
