@@ -12,7 +12,7 @@ score a model, without the raw samples.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -48,6 +48,13 @@ class PreparedRun:
     """Measured-event indices of each block."""
     notes: tuple[str, ...] = ()
     """What reading the run found (probes over range)."""
+    irregular: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    """Per protocol phase: irregular stick-slip, compared by its mean (one block)."""
+
+    def block_is_irregular(self, block: np.ndarray) -> bool:
+        seg = int(self.events.segment[block[0]]) if block.size else -1
+        return 0 <= seg < self.irregular.shape[0] and bool(self.irregular[seg]) \
+            and not self.events.first_in_segment()[block[0]]
 
 
 @dataclass(frozen=True)
@@ -58,6 +65,25 @@ class Dataset:
     scale: dict[str, float]
     """Typical size of each feature (for floors and wording)."""
     notes: tuple[str, ...] = field(default_factory=tuple)
+    phase_sigma: tuple[dict[str, FloatArray], ...] = field(default_factory=tuple)
+    """Per run and feature: the scatter of each protocol phase (indexed by phase), at least
+    ``sigma``; larger where the measured sequence of that phase is irregular (see
+    :func:`phase_scatter`)."""
+
+    def event_sigma(self, i_run: int, name: str) -> FloatArray:
+        """The scatter each event of run ``i_run`` is measured in (its phase's)."""
+        run = self.runs[i_run]
+        ev = run.events
+        if i_run >= len(self.phase_sigma) or name not in self.phase_sigma[i_run]:
+            return np.full(ev.n, self.sigma[name])
+        ph = self.phase_sigma[i_run][name]
+        out: FloatArray = ph[ev.segment]
+        # the first slip after an irregular phase starts from wherever that phase left off
+        after = ev.first_in_segment() & (ev.segment > 0)
+        prev = np.clip(ev.segment - 1, 0, None)
+        after &= run.irregular[prev] if run.irregular.size else np.zeros(ev.n, dtype=bool)
+        out[after] = np.maximum(out[after], ph[prev[after]])
+        return out
 
     @property
     def n_events(self) -> int:
@@ -68,11 +94,15 @@ class Dataset:
         return [r.name for r in self.runs]
 
 
-def _blocks(events: EventTable) -> tuple[np.ndarray, ...]:
+def _blocks(events: EventTable, irregular: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     out: list[np.ndarray] = []
     for seg in np.unique(events.segment):
         idx = np.flatnonzero(events.segment == seg)
         out.append(idx[:1])
+        if irregular is not None and seg < irregular.shape[0] and irregular[seg]:
+            if idx.size > 1:
+                out.append(idx[1:])
+            continue
         rest = idx[1:]
         if rest.size:
             n_blocks = math.ceil(rest.size / BLOCK_SIZE)
@@ -196,6 +226,73 @@ def feature_scales(runs: list[PreparedRun]) -> tuple[dict[str, float], dict[str,
     return sigma, scale
 
 
+IRREGULAR_FACTOR = 3.0
+"""A phase whose slips vary from one to the next by more than this many campaign scatters (in
+``drop_N``) is irregular: compared by its mean, not slip by slip (:func:`irregular_phases`)."""
+SHORT_CYCLE_FACTOR = 2.0
+"""...or whose median cycle is shorter than this many post-slip settle times."""
+MIN_PHASE_EVENTS = 5
+
+
+def _phase_values(ev: EventTable, name: str, seg: int, first: np.ndarray) -> FloatArray:
+    v = ev.features[name][(ev.segment == seg) & ~first]
+    v = v[np.isfinite(v)]
+    return np.log(v[v > 0]) if FEATURES[name].log else v
+
+
+def irregular_phases(run: PreparedRun, sigma: dict[str, float]) -> np.ndarray:
+    """Per protocol phase of ``run``: True where its stick-slip is irregular.
+
+    In a phase whose cycles are about as short as the ringing after a slip, each slip starts at
+    another phase of the previous one's ringing: slip sizes then wander between branches (period
+    doubling, chaos), and a model with the right physics makes an equally irregular sequence that
+    a change of 0.1 % in a parameter reshuffles. Compared slip by slip, such a phase would
+    dominate the error and make it jump with every parameter change. A phase (at least
+    MIN_PHASE_EVENTS slips after its first) is irregular when its median cycle is shorter than
+    SHORT_CYCLE_FACTOR post-slip settle times (the run's measured ringing,
+    :func:`_settle_time`), or when the successive-difference scatter of its drops (as in
+    :func:`_scatter`) exceeds IRREGULAR_FACTOR campaign scatters (irregular for another reason,
+    in a campaign whose other phases are regular).
+    """
+    ev = run.events
+    n_ph = max(run.drive.n_segments(), int(ev.segment.max()) + 1 if ev.n else 0)
+    out = np.zeros(n_ph, dtype=bool)
+    first = ev.first_in_segment()
+    base = sigma["drop_N"]
+    cycle = ev.covariates["stick_time_s"]
+    for seg in np.unique(ev.segment):
+        sel = (ev.segment == seg) & ~first
+        v = _phase_values(ev, "drop_N", int(seg), first)
+        if np.count_nonzero(sel) < MIN_PHASE_EVENTS:
+            continue
+        short = float(np.median(cycle[sel])) < SHORT_CYCLE_FACTOR * run.read.settle_s
+        s = _robust_spread(np.diff(v)) / math.sqrt(2.0) if v.size >= 3 else math.nan
+        out[seg] = short or bool(np.isfinite(s) and s > IRREGULAR_FACTOR * base)
+    return out
+
+
+def phase_scatter(
+    run: PreparedRun, sigma: dict[str, float], irregular: np.ndarray
+) -> dict[str, FloatArray]:
+    """Per feature, the scatter of each phase of ``run``: the campaign's, and in an irregular
+    phase the standard deviation of the phase's values if that is larger (not a robust spread:
+    the slips of an irregular phase wander between branches, and the spread is the physics). An irregular
+    phase is one block (:func:`_blocks`) whose z is the difference of the means in units of this
+    spread, not of the spread of a mean: its slips are a deterministic, correlated sequence,
+    not independent draws (:mod:`rigctl.workbench.metrics`)."""
+    ev = run.events
+    first = ev.first_in_segment()
+    out: dict[str, FloatArray] = {}
+    for name in EVENT_FEATURES:
+        arr = np.full(irregular.shape[0], sigma[name])
+        for seg in np.flatnonzero(irregular):
+            v = _phase_values(ev, name, int(seg), first)
+            if v.size >= 3:
+                arr[seg] = max(sigma[name], float(np.std(v)))
+        out[name] = arr
+    return out
+
+
 def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     """Check and read a campaign (one or more runs)."""
     if not runs:
@@ -217,7 +314,16 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
             path=where,
         )
     sigma, scale = feature_scales(prepared)
-    return Dataset(tuple(prepared), sigma, scale, tuple(notes))
+    for i, r in enumerate(prepared):
+        irr = irregular_phases(r, sigma)
+        prepared[i] = replace(r, irregular=irr, blocks=_blocks(r.events, irr))
+        if irr.any():
+            notes.append(
+                f"{r.name}: irregular stick-slip in phase(s) "
+                f"{', '.join(str(int(k) + 1) for k in np.flatnonzero(irr))}: compared by the "
+                "phase mean, not slip by slip")
+    phase = tuple(phase_scatter(r, sigma, r.irregular) for r in prepared)
+    return Dataset(tuple(prepared), sigma, scale, tuple(notes), phase)
 
 
 def protocols_present(dataset: Dataset) -> list[str]:

@@ -100,19 +100,20 @@ def score(dataset: Dataset, model_events: list[EventTable]) -> Score:
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
     for name in EVENT_FEATURES:
-        sigma = dataset.sigma[name]
-        for run, comp in zip(dataset.runs, comps, strict=True):
+        for i_run, (run, comp) in enumerate(zip(dataset.runs, comps, strict=True)):
             meas = run.events.features[name]
-            z_ev = comp.residual[name] / sigma
+            z_ev = comp.residual[name] / dataset.event_sigma(i_run, name)
             z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
             zb = np.zeros(len(run.blocks))
+            irregular = [run.block_is_irregular(idx) for idx in run.blocks]
             for b, idx in enumerate(run.blocks):
                 active = np.isfinite(meas[idx])
                 if not active.any():
                     continue
                 z = z_ev[idx][active]
                 z = np.where(np.isfinite(z), z, MISSING_EVENT_Z)
-                zb[b] = float(np.mean(z)) * math.sqrt(z.size)
+                # an irregular phase: the difference of the means in units of the spread
+                zb[b] = float(np.mean(z)) * (1.0 if irregular[b] else math.sqrt(z.size))
                 sums[name] = sums.get(name, 0.0) + zb[b] ** 2
                 counts[name] = counts.get(name, 0) + 1
             parts.append(zb)

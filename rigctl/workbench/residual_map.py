@@ -93,9 +93,10 @@ class ResidualMap:
 def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict[str, FloatArray]]:
     out: dict[str, dict[str, FloatArray]] = {}
     for name in EVENT_FEATURES:
-        sigma = dataset.sigma[name]
         r = np.concatenate([c.residual[name] for c in comps]) if comps else np.zeros(0)
-        cols: dict[str, FloatArray] = {"r": r, "z": r / sigma}
+        sig = np.concatenate([dataset.event_sigma(i, name) for i in range(len(dataset.runs))]) \
+            if comps else np.zeros(0)
+        cols: dict[str, FloatArray] = {"r": r, "z": r / sig}
         for cov in COVARIATES:
             cols[cov] = np.concatenate([run.events.covariates[cov] for run in dataset.runs])
         cols["stage"] = np.concatenate([run.events.stage.astype(float) for run in dataset.runs])
