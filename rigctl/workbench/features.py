@@ -36,13 +36,20 @@ the bands when the contact slips progressively (``stress_evolution``) and is fla
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings, SlipIndices, detect_slips
-from rigctl.workbench.signals import FloatArray, line_fit, noise_sigma, regress_slope
+from rigctl.workbench.signals import (
+    FloatArray,
+    line_fit,
+    noise_sigma,
+    regress_slope,
+    slope_se,
+)
 
 EVENT_FEATURES: tuple[str, ...] = (
     "peak_N", "trough_N", "drop_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding",
@@ -52,6 +59,11 @@ COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
     "dft_dt_N_per_s",
 )
+MAX_ATTENUATION = 0.1
+"""K(i) is read only where the force noise attenuates the fitted compliance by at most 10 % before
+correction (the force range of the window at least about 11 noise RMS)."""
+SE_FEATURES: tuple[str, ...] = ("rate_N_per_s", "rounding", "k_stick_N_per_m")
+"""Features read from a fitted slope, whose per-event standard error :class:`EventTable` keeps."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
 
 
@@ -78,6 +90,10 @@ class EventTable:
     init_k_N_per_m: FloatArray = field(default_factory=lambda: np.full(len(INIT_BANDS), np.nan))
     """Initial-stage stiffness in the bands of INIT_BANDS (NaN if the run starts loaded)."""
     i_peak: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    se: dict[str, FloatArray] = field(default_factory=dict)
+    """Per feature (those read from a fitted slope: the loading ramp), each event's own standard
+    error from the record's white noise (ln units for log features); NaN where not measured.
+    Large only where the window is short (a stick cut short by a velocity step)."""
 
     @property
     def n(self) -> int:
@@ -160,6 +176,8 @@ def extract_events(
         t_drop[j] = _drop_time(t, ft_N, i_pk, i_end, ft_N[i_pk] - s * 0.5 * size0[j], s)
 
     feats = {name: np.full(n_ev, np.nan) for name in EVENT_FEATURES}
+    se = {name: np.full(n_ev, np.nan) for name in SE_FEATURES}
+    sigma_d = noise_sigma(delta_m)
     cov = {name: np.full(n_ev, np.nan) for name in COVARIATES}
     stage = np.ones(n_ev, dtype=np.int8)
     segment = drive.segment_index(t_drop) if n_ev else np.zeros(0, np.intp)
@@ -221,16 +239,30 @@ def extract_events(
         # loading ramp: early slope, K(i), rounding
         if length > 20 * dt:
             i_e0, i_e1 = idx(a_load + 0.1 * length), idx(a_load + 0.6 * length)
+            i_n0 = idx(td - 0.15 * length)
             _, rate = line_fit(t, ft_N, i_e0, i_e1, td)
-            _, rate_end = line_fit(t, ft_N, idx(td - 0.15 * length), i_pk + 1, td)
+            _, rate_end = line_fit(t, ft_N, i_n0, i_pk + 1, td)
             feats["rate_N_per_s"][j] = s * rate
+            se_rate = slope_se(t[i_e0:i_e1], sigma_f)
+            se_end = slope_se(t[i_n0 : i_pk + 1], sigma_f)
             if rate != 0.0 and np.isfinite(rate):
                 feats["rounding"][j] = rate_end / rate
+                se["rate_N_per_s"][j] = se_rate / abs(rate)
+                se["rounding"][j] = math.hypot(se_end, abs(rate_end) * se_rate / abs(rate)) \
+                    / abs(rate)
             f_seg = ft_N[i_e0:i_e1]
-            if f_seg.size > 3 and float(np.ptp(f_seg)) > 6.0 * sigma_f and d_ok(i_e0, i_e1):
-                compliance = regress_slope(f_seg, delta_m[i_e0:i_e1])
+            # Ft is noisy too: the least-squares slope of delta on Ft is attenuated by the
+            # reliability ratio 1 - sigma_f^2 / var(Ft) (errors in variables; Fuller, Measurement
+            # Error Models, 1987, Sec. 1.1). The noise-free model's is not, so a short window
+            # (a stick cut short by a velocity step) would read stiffer than the model: correct
+            # for it, and only where it is under MAX_ATTENUATION
+            var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
+            reliability = 1.0 - sigma_f**2 / var_f if var_f > 0.0 else 0.0
+            if f_seg.size > 3 and reliability >= 1.0 - MAX_ATTENUATION and d_ok(i_e0, i_e1):
+                compliance = regress_slope(f_seg, delta_m[i_e0:i_e1]) / reliability
                 if np.isfinite(compliance) and compliance > 0.0:
                     feats["k_stick_N_per_m"][j] = 1.0 / compliance
+                    se["k_stick_N_per_m"][j] = slope_se(f_seg, sigma_d) / compliance
 
         # the drop itself: ringing about the settled line and sharpness
         if np.isfinite(trough) and np.isfinite(feats["drop_N"][j]) and feats["drop_N"][j] > 0:
@@ -281,7 +313,7 @@ def extract_events(
             stage[0] = 0
             init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0, sigma_f,
                                     delta_valid)
-    return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy())
+    return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy(), se)
 
 
 def _initial_curve(

@@ -76,6 +76,17 @@ def line_fit(t: FloatArray, y: FloatArray, i0: int, i1: int, t_eval: float) -> t
     return sy / n + slope * (t_eval - t0 - st / n), slope
 
 
+def slope_se(x: FloatArray, sigma_y: float) -> float:
+    """Standard error of a least-squares slope dy/dx over abscissae ``x`` when y carries white
+    noise of RMS ``sigma_y``: sigma_y / sqrt(sum (x - mean x)^2) (any regression text, e.g.
+    Draper & Smith, Applied Regression Analysis, Sec. 1.4). NaN with fewer than 3 points."""
+    if x.shape[0] < 3:
+        return float("nan")
+    dx = x - x.mean()
+    sxx = float(dx @ dx)
+    return sigma_y / math.sqrt(sxx) if sxx > 0.0 else float("nan")
+
+
 def regress_slope(x: FloatArray, y: FloatArray) -> float:
     """Least-squares slope dy/dx (NaN with fewer than 3 points or no spread in x)."""
     if x.shape[0] < 3:
