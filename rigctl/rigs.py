@@ -28,6 +28,9 @@ while the recorded data never falls more than ``Pacer.max_lag_s`` of rig time be
 STALL_S = 0.2
 """Host seconds without new recorded data after which the paced rig runs on at real time."""
 
+TICK_S = 0.005
+"""Host seconds between advances of a speed-capped paced rig (the free-running rig's ``tick_s``)."""
+
 
 class Pacer:
     """Advances a manual-clock virtual rig in small steps, as fast as the acquisition keeps up.
@@ -36,15 +39,31 @@ class Pacer:
     stage positions polled "now" would not match the samples they are stored with, and waits measured
     on the data would jump. Pacing keeps the rig at most ``max_lag_s`` of rig time ahead of the newest
     recorded sample, so every reading is current to within that.
+
+    ``speed`` caps the rig's clock at that many rig seconds per host second (``--speed N``; ``inf``
+    for ``--speed max``). A rig held back by the recorder does not catch up afterwards: the cap counts
+    from where it resumed. Before :meth:`follow` a capped rig runs at ``speed``, an uncapped one
+    waits. Every advance is pinned on the rig's clock (``SimClock.pin``), so host timestamps of
+    simulated devices (camera frames) follow the rig's actual progress.
     """
 
-    def __init__(self, rig: Any, step_s: float = 1.0 / 16.0, max_lag_s: float = 0.25) -> None:
+    def __init__(
+        self,
+        rig: Any,
+        step_s: float = 1.0 / 16.0,
+        max_lag_s: float = 0.25,
+        speed: float = MAX_SPEED,
+    ) -> None:
+        if not speed > 0:
+            raise ValueError(f"pacer speed must be positive, got {speed!r}")
         self.rig = rig
         self.step_s = step_s
         self.max_lag_s = max_lag_s
+        self.speed = speed
         self._data_time: Callable[[], float] | None = None
         self._offset: float | None = None
         self._t_follow = 0.0
+        self._anchor: tuple[float, float] | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sim-pacer", daemon=True)
         self.error: BaseException | None = None
@@ -56,6 +75,7 @@ class Pacer:
         self._data_time = data_time
 
     def start(self) -> Pacer:
+        self.rig.clock.pin(self.rig.t_s)
         self._thread.start()
         return self
 
@@ -77,27 +97,52 @@ class Pacer:
         self._offset = observed if self._offset is None else min(self._offset, observed)
         return observed - self._offset
 
+    def _advance_to(self, t_s: float) -> None:
+        self.rig.advance_to(t_s)
+        self.rig.clock.pin(self.rig.t_s)
+
+    def _capped(self, now: float) -> float | None:
+        """Where the speed cap lets the rig go now (None: nowhere yet, wait a tick)."""
+        target = self.rig.t_s + self.step_s
+        if math.isinf(self.speed):
+            return target
+        if self._anchor is None:
+            self._anchor = (now, self.rig.t_s)
+        cap = self._anchor[1] + self.speed * (now - self._anchor[0])
+        if cap >= target:
+            return target
+        return cap if cap - self.rig.t_s >= self.speed * TICK_S else None
+
     def _run(self) -> None:
         try:
             last_data = float("nan")
             last_progress = time.monotonic()
             while not self._stop.is_set():
-                if self._data_time is None:
+                now = time.monotonic()
+                if self._data_time is None and math.isinf(self.speed):
                     self._stop.wait(0.001)
                     continue
-                t_data = self._data_time()
-                lag = self._lag_s(t_data)
-                now = time.monotonic()
-                if t_data == t_data and t_data != last_data:
-                    last_data, last_progress = t_data, now
-                if lag > self.max_lag_s:
-                    if now - last_progress < STALL_S:  # the recorder is catching up: wait for it
-                        self._stop.wait(0.001)
+                if self._data_time is not None:
+                    t_data = self._data_time()
+                    lag = self._lag_s(t_data)
+                    if t_data == t_data and t_data != last_data:
+                        last_data, last_progress = t_data, now
+                    if lag > self.max_lag_s:
+                        self._anchor = None  # held: the speed cap restarts where the rig resumes
+                        if now - last_progress < STALL_S:  # the recorder is catching up: wait
+                            self._stop.wait(0.001)
+                            continue
+                        # no recorded data for STALL_S (a silent DAQ, a stopped acquisition): the
+                        # rig's clock goes on at real time, so timeouts and a safe-state retraction
+                        # still happen
+                        self._stop.wait(self.step_s)
+                        self._advance_to(self.rig.t_s + self.step_s)
                         continue
-                    # no recorded data for STALL_S (a silent DAQ, a stopped acquisition): the rig's
-                    # clock goes on at real time, so timeouts and a safe-state retraction still happen
-                    self._stop.wait(self.step_s)
-                self.rig.advance_to(self.rig.t_s + self.step_s)
+                target = self._capped(now)
+                if target is None:
+                    self._stop.wait(TICK_S)
+                    continue
+                self._advance_to(target)
         except BaseException as exc:  # surfaces as silent devices, and here for the record
             self.error = exc
 
@@ -151,9 +196,9 @@ def open_rig(
         factor = 100.0 if math.isinf(speed) else speed
         fps = cam_cfg.frame_rate_hz / factor if factor > 1 else cam_cfg.frame_rate_hz
         cfg = dataclasses.replace(config, camera=dataclasses.replace(cam_cfg, frame_rate_hz=fps))
-        paced = math.isinf(speed)
+        paced = speed > 1.0  # an accelerated rig must not outrun its recorder (Pacer)
         sim = build_sim_rig(backend, config=cfg, speed=None if paced else speed, model=model)
-        pacer = Pacer(sim.rig).start() if paced else None
+        pacer = Pacer(sim.rig, speed=speed).start() if paced else None
         try:
             yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(cfg), cfg, speed, sim,
                           pacer)

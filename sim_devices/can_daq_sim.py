@@ -139,6 +139,12 @@ class CanDaqSim:
     def rate_hz(self) -> int:
         return self._rate_hz
 
+    @property
+    def stream_start_s(self) -> float | None:
+        """Rig time of the stream's sample 0 (None while stopped): sample n is at this + n / rate."""
+        cursor = self._cursor
+        return None if cursor is None else cursor.t0_s
+
     # ---------------------------------------------------------------------------- lifecycle
     def start(self) -> CanDaqSim:
         if self._running:

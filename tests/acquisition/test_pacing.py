@@ -1,0 +1,85 @@
+"""An accelerated simulated rig is paced by what the acquisition records (``rigctl.rigs.Pacer``).
+
+The regression: at ``--speed 20`` on ``sim-wire`` the rig's clock ran free at 20x while the simulated
+CAN DAQ node, sending two frames per sample, could not keep up with 20480 samples/s: the recorded
+forces fell up to 12 rig seconds behind while the stage positions, polled over Modbus, were current.
+The normal-load controller then closed its loop on stale Fn (overshoot to the 800 N over-load) and the
+safe state judged the release on a force from before the retraction ("the normal load is still on").
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from rigctl.acquisition import Acquisition
+from rigctl.config.loader import default_config
+from rigctl.rigs import STALL_S, Pacer, open_rig
+from sim_devices.can_daq_sim import CanDaqSim
+from sim_devices.clock import SimClock
+from sim_devices.virtual_rig import VirtualRig
+
+SPEED = 50.0
+"""Far beyond what the simulated CAN node streams (2 x 51200 frames/s): it lagged by seconds."""
+
+
+def test_sim_wire_at_speed_n_keeps_the_recorded_forces_current():
+    with open_rig("sim-wire", default_config(), speed=SPEED) as rig:
+        vr = rig.sim.rig
+        node = next(s for s in rig.sim.servers if isinstance(s, CanDaqSim))
+        acq = Acquisition(rig.devices, None, record_camera=False)
+        if rig.pacer is not None:  # as `rigctl run` and the GUI do
+            rig.pacer.follow(lambda: acq.t_s)
+        acq.start()
+        try:
+            h0, t0 = time.monotonic(), vr.t_s
+            worst = 0.0
+            while time.monotonic() - h0 < 1.5:
+                time.sleep(0.01)
+                t_data, start = acq.t_s, node.stream_start_s
+                if start is not None and not math.isnan(t_data):
+                    # rig time now minus the rig time of the newest recorded sample
+                    worst = max(worst, vr.t_s - (start + t_data))
+            elapsed, advanced = time.monotonic() - h0, vr.t_s - t0
+        finally:
+            acq.stop()
+    assert worst < 0.6, f"the recorded data fell {worst:.2f} s of rig time behind the rig"
+    assert 1.0 < advanced <= SPEED * elapsed + 0.1  # accelerated, never beyond the speed
+
+
+def test_pacer_caps_the_clock_at_its_speed_and_does_not_catch_up_after_a_hold():
+    rig = VirtualRig(speed=None)
+    data = [math.nan]
+    pacer = Pacer(rig, speed=10.0).start()
+    try:
+        h0, t0 = time.monotonic(), rig.t_s
+        time.sleep(0.3)  # not following a recorder yet: runs at the speed
+        assert 0.0 < rig.t_s - t0 <= 10.0 * (time.monotonic() - h0) + pacer.step_s
+        t_follow = rig.t_s
+        pacer.follow(lambda: data[0])
+        data[0] = 0.0  # one sample recorded, then nothing: the rig waits max_lag_s ahead of it
+        time.sleep(0.8 * STALL_S)
+        assert rig.t_s - t_follow <= pacer.max_lag_s + 2 * pacer.step_s
+        # the recorder keeps up again: the cap counts from where the rig resumes (no catch-up of
+        # the ~2 rig seconds the hold cost)
+        h1, t1 = time.monotonic(), rig.t_s
+        while time.monotonic() - h1 < 0.3:
+            data[0] = rig.t_s - t_follow
+            time.sleep(0.002)
+        assert 0.0 < rig.t_s - t1 <= 10.0 * (time.monotonic() - h1) + pacer.step_s
+    finally:
+        pacer.stop()
+        rig.close()
+    assert pacer.error is None
+
+
+def test_a_pinned_manual_clock_maps_rig_time_to_when_the_rig_reached_it():
+    clock = SimClock(None)
+    assert clock.host_ns_at(2.0) - clock.host_ns_at(1.0) == 1_000_000_000  # unpinned: one to one
+    clock.pin(1.0, 10_000)
+    clock.pin(3.0, 30_000)
+    clock.pin(2.5, 40_000)  # backwards in rig time: ignored
+    assert clock.host_ns_at(2.0) == 20_000
+    assert clock.host_ns_at(3.0) == 30_000
+    assert clock.host_ns_at(9.0) == 30_000  # beyond the last pin: reached no later than that
+    assert clock.host_ns_at(0.5) == 10_000 - 500_000_000
