@@ -137,10 +137,13 @@ def refine(dataset: Dataset, result: FitResult) -> FitResult:
     return fit(dataset, result.choice, free, max_nfev=8, with_uncertainty=True)
 
 
-def cost_order(dataset: Dataset, model: FitResult, candidates: Sequence[str]) -> list[str]:
-    """Candidates, slowest to simulate first (so parallel workers finish together): each is timed
-    on the first COST_PROBE_S of the first run (long enough for the slow integration paths - a
-    nonlinear slip law, a state variable - to show over the fixed costs)."""
+def cost_order(
+    dataset: Dataset, model: FitResult, candidates: Sequence[str]
+) -> tuple[list[str], list[float]]:
+    """Candidates, slowest to simulate first (so parallel workers finish together), with their
+    simulation times: each is timed on the first COST_PROBE_S of the first run (long enough for
+    the slow integration paths - a nonlinear slip law, a state variable - to show over the fixed
+    costs)."""
     run = dataset.runs[0]
     short = replace(run, drive=_truncate(run.drive, COST_PROBE_S))
     costs = []
@@ -153,7 +156,7 @@ def cost_order(dataset: Dataset, model: FitResult, candidates: Sequence[str]) ->
                 simulate_run(choice.build(), short)
         costs.append(time.perf_counter() - t0)
     order = sorted(range(len(candidates)), key=lambda i: -costs[i])
-    return [candidates[i] for i in order]
+    return [candidates[i] for i in order], [costs[i] for i in order]
 
 
 def _truncate(drive: DriveProfile, t_end_s: float) -> DriveProfile:
@@ -170,7 +173,7 @@ def run_round(
     scheduler: Any, progress: Progress | None, timeout_s: float = DEFAULT_TIMEOUT_S,
     in_process: bool = False,
 ) -> Round:
-    candidates = cost_order(dataset, model, candidates)
+    candidates, costs = cost_order(dataset, model, candidates)
     tasks = [CandidateTask(dataset, model, c) for c in candidates]
 
     def done(i: int, res: FitResult | TaskFailed) -> None:
@@ -184,7 +187,8 @@ def run_round(
                      f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s)")
 
     outcomes = run_tasks(fit_candidate, tasks, workers=workers, scheduler=scheduler,
-                         on_done=done, timeout_s=timeout_s, in_process=in_process)
+                         on_done=done, timeout_s=timeout_s, in_process=in_process,
+                         costs=costs)
     base_map = residual_map(dataset, evaluate(dataset, model.choice).score.comparisons)
     scores: list[CandidateScore] = []
     by_name: dict[str, FitResult] = {}

@@ -5,7 +5,9 @@
   CPUs). A task that raises, dies, or runs past its time limit becomes a :class:`TaskFailed` (the
   process is killed) instead of stopping the others - a candidate model whose simulation never ends
   must not hang the whole diagnosis. The limit is ``timeout_s``, tightened once three tasks have
-  finished to ``max(6 x the slowest finished task, 20 s)``.
+  finished to ``max(6 x the slowest finished task, 20 s)``; with ``costs`` (each task's expected
+  relative cost) the 6 x is per unit of cost: ``6 x max(finished time / cost) x cost``, so a task
+  known to be slower (a candidate whose simulation costs six times more) is not stopped for it.
 * ``in_process=True``: the tasks run one after the other in this process (no protection; for
   debugging and profiling).
 * ``scheduler="tcp://host:port"`` (or a ``distributed.Client``): the tasks go to that Dask
@@ -63,6 +65,7 @@ def run_tasks(
     on_done: Callable[[int, R | TaskFailed], None] | None = None,
     timeout_s: float = DEFAULT_TIMEOUT_S,
     in_process: bool = False,
+    costs: Sequence[float] | None = None,
 ) -> list[R | TaskFailed]:
     if not tasks:
         return []
@@ -76,7 +79,11 @@ def run_tasks(
                 on_done(i, res)
             out.append(res)
         return out
-    return _run_processes(fn, tasks, workers or default_workers(), on_done, timeout_s)
+    if costs is not None and len(costs) != len(tasks):
+        raise ValueError(f"{len(costs)} costs for {len(tasks)} tasks")
+    rel = [c if c > 0 and c == c else 1.0 for c in costs] if costs is not None \
+        else [1.0] * len(tasks)
+    return _run_processes(fn, tasks, workers or default_workers(), on_done, timeout_s, rel)
 
 
 def _child(fn: Callable[[Any], Any], task: Any, conn: Connection) -> None:
@@ -94,13 +101,14 @@ def _child(fn: Callable[[Any], Any], task: Any, conn: Connection) -> None:
 def _run_processes(
     fn: Callable[[T], R], tasks: Sequence[T], workers: int,
     on_done: Callable[[int, R | TaskFailed], None] | None, timeout_s: float,
+    costs: Sequence[float],
 ) -> list[R | TaskFailed]:
     methods = multiprocessing.get_all_start_methods()
     ctx: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
     results: list[Any] = [None] * len(tasks)
     todo = list(range(len(tasks)))
     running: dict[int, tuple[Any, Connection, float]] = {}
-    finished_times: list[float] = []
+    finished_times: list[float] = []  # per unit of expected cost
 
     def finish(i: int, value: R | TaskFailed) -> None:
         results[i] = value
@@ -128,12 +136,12 @@ def _run_processes(
                     conn.close()
                     proc.join(timeout=5)
                     del running[i]
-                    finished_times.append(now - t0)
+                    finished_times.append((now - t0) / costs[i])
                     finish(i, value if status == "ok" else TaskFailed(str(value)))
                     continue
                 limit = timeout_s
                 if len(finished_times) >= 3:
-                    limit = min(limit, max(ADAPTIVE_FACTOR * max(finished_times),
+                    limit = min(limit, max(ADAPTIVE_FACTOR * max(finished_times) * costs[i],
                                            ADAPTIVE_FLOOR_S))
                 if now - t0 > limit:
                     proc.kill()

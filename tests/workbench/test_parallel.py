@@ -6,6 +6,7 @@ import time
 
 import pytest
 
+from rigctl.workbench import parallel
 from rigctl.workbench.parallel import TaskFailed, run_tasks
 
 
@@ -57,3 +58,20 @@ def test_tasks_run_on_a_dask_cluster():
         assert out == [1, 4, 9]
         out = run_tasks(fails_on_three, [3, 4], scheduler=cluster.scheduler_address)
         assert isinstance(out[0], TaskFailed) and out[1] == 4
+
+
+def test_the_adaptive_limit_scales_with_each_tasks_expected_cost(monkeypatch):
+    """Once three tasks finish, the limit tightens to 6 x the slowest per unit of cost: a task
+    known to cost 40 times more (a candidate with a state variable) is not stopped for being
+    slower than the quick ones, while one that overruns its own share still is."""
+    monkeypatch.setattr(parallel, "ADAPTIVE_FLOOR_S", 0.5)
+    quick = [0.05, 0.05, 0.05]
+    blind = run_tasks(sleeps, [*quick, 1.5], workers=4)
+    assert isinstance(blind[3], TaskFailed) and "time limit" in blind[3].message
+    aware = run_tasks(sleeps, [*quick, 1.5], workers=4, costs=[1.0, 1.0, 1.0, 40.0])
+    assert aware[3] == 1.5
+    t0 = time.monotonic()
+    hung = run_tasks(sleeps, [*quick, 30.0], workers=4, costs=[1.0, 1.0, 1.0, 2.0])
+    assert isinstance(hung[3], TaskFailed) and time.monotonic() - t0 < 10.0
+    with pytest.raises(ValueError, match="2 costs for 4 tasks"):
+        run_tasks(sleeps, [*quick, 1.0], costs=[1.0, 1.0])
