@@ -50,11 +50,8 @@ class PreparedRun:
     """What reading the run found (probes over range)."""
     irregular: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Per protocol phase: irregular stick-slip, compared by its mean (one block)."""
-
-    def block_is_irregular(self, block: np.ndarray) -> bool:
-        seg = int(self.events.segment[block[0]]) if block.size else -1
-        return 0 <= seg < self.irregular.shape[0] and bool(self.irregular[seg]) \
-            and not self.events.first_in_segment()[block[0]]
+    block_irregular: tuple[bool, ...] = ()
+    """Per block: the later slips of an irregular phase (empty: no block is)."""
 
 
 @dataclass(frozen=True)
@@ -65,35 +62,16 @@ class Dataset:
     scale: dict[str, float]
     """Typical size of each feature (for floors and wording)."""
     notes: tuple[str, ...] = field(default_factory=tuple)
-    phase_sigma: tuple[dict[str, FloatArray], ...] = field(default_factory=tuple)
-    """Per run and feature: the scatter of each protocol phase (indexed by phase), at least
-    ``sigma``; larger where the measured sequence of that phase is irregular (see
-    :func:`phase_scatter`)."""
+    event_sigmas: tuple[dict[str, FloatArray], ...] = field(default_factory=tuple)
+    """Per run and feature: the scatter each event is measured in (:func:`event_scatter`; fixed
+    once for the campaign, read by every evaluation)."""
 
     def event_sigma(self, i_run: int, name: str) -> FloatArray:
-        """The scatter each event of run ``i_run`` is measured in: its phase's, raised to the
-        event's own standard error where that is larger (a slope read from a short window,
-        :attr:`EventTable.se`: e.g. the stick cut short by a velocity step, whose loading rate
-        from 40 samples is uncertain by 30 % where the campaign's rates scatter by 0.5 %)."""
-        out = self._phase_event_sigma(i_run, name)
-        se = self.runs[i_run].events.se.get(name)
-        if se is not None and se.shape == out.shape:
-            out = np.where(np.isfinite(se), np.maximum(out, se), out)
-        return out
-
-    def _phase_event_sigma(self, i_run: int, name: str) -> FloatArray:
-        run = self.runs[i_run]
-        ev = run.events
-        if i_run >= len(self.phase_sigma) or name not in self.phase_sigma[i_run]:
-            return np.full(ev.n, self.sigma[name])
-        ph = self.phase_sigma[i_run][name]
-        out: FloatArray = ph[ev.segment]
-        # the first slip after an irregular phase starts from wherever that phase left off
-        after = ev.first_in_segment() & (ev.segment > 0)
-        prev = np.clip(ev.segment - 1, 0, None)
-        after &= run.irregular[prev] if run.irregular.size else np.zeros(ev.n, dtype=bool)
-        out[after] = np.maximum(out[after], ph[prev[after]])
-        return out
+        """The scatter each event of run ``i_run`` is measured in (``sigma`` where the dataset was
+        built without :func:`prepare_dataset`)."""
+        if i_run < len(self.event_sigmas) and name in self.event_sigmas[i_run]:
+            return self.event_sigmas[i_run][name]
+        return np.full(self.runs[i_run].events.n, self.sigma[name])
 
     @property
     def n_events(self) -> int:
@@ -102,6 +80,18 @@ class Dataset:
     @property
     def names(self) -> list[str]:
         return [r.name for r in self.runs]
+
+
+def _block_flags(
+    events: EventTable, blocks: tuple[np.ndarray, ...], irregular: np.ndarray
+) -> tuple[bool, ...]:
+    """Per block of :func:`_blocks`: True for the later slips of an irregular phase."""
+    first = events.first_in_segment()
+    return tuple(
+        bool(b.size) and int(events.segment[b[0]]) < irregular.shape[0]
+        and bool(irregular[events.segment[b[0]]]) and not bool(first[b[0]])
+        for b in blocks
+    )
 
 
 def _blocks(events: EventTable, irregular: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
@@ -303,6 +293,30 @@ def phase_scatter(
     return out
 
 
+def event_scatter(
+    run: PreparedRun, phase: dict[str, FloatArray]
+) -> dict[str, FloatArray]:
+    """Per feature, the scatter each event of ``run`` is measured in: its phase's (``phase``, from
+    :func:`phase_scatter`); for the first slip after an irregular phase, which starts from
+    wherever that phase left off, at least that phase's; and raised to the event's own standard
+    error where that is larger (a slope read from a short window, :attr:`EventTable.se`: e.g. the
+    stick cut short by a velocity step, whose loading rate from 40 samples is uncertain by 30 %
+    where the campaign's rates scatter by 0.5 %)."""
+    ev = run.events
+    prev = np.clip(ev.segment - 1, 0, None)
+    after = ev.first_in_segment() & (ev.segment > 0)
+    after &= run.irregular[prev] if run.irregular.size else np.zeros(ev.n, dtype=bool)
+    out: dict[str, FloatArray] = {}
+    for name, ph in phase.items():
+        sig: FloatArray = ph[ev.segment]
+        sig[after] = np.maximum(sig[after], ph[prev[after]])
+        se = ev.se.get(name)
+        if se is not None and se.shape == sig.shape:
+            sig = np.where(np.isfinite(se), np.maximum(sig, se), sig)
+        out[name] = sig
+    return out
+
+
 def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     """Check and read a campaign (one or more runs)."""
     if not runs:
@@ -326,14 +340,16 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     sigma, scale = feature_scales(prepared)
     for i, r in enumerate(prepared):
         irr = irregular_phases(r, sigma)
-        prepared[i] = replace(r, irregular=irr, blocks=_blocks(r.events, irr))
+        blocks = _blocks(r.events, irr)
+        prepared[i] = replace(r, irregular=irr, blocks=blocks,
+                              block_irregular=_block_flags(r.events, blocks, irr))
         if irr.any():
             notes.append(
                 f"{r.name}: irregular stick-slip in phase(s) "
                 f"{', '.join(str(int(k) + 1) for k in np.flatnonzero(irr))}: compared by the "
                 "phase mean, not slip by slip")
-    phase = tuple(phase_scatter(r, sigma, r.irregular) for r in prepared)
-    return Dataset(tuple(prepared), sigma, scale, tuple(notes), phase)
+    per_event = tuple(event_scatter(r, phase_scatter(r, sigma, r.irregular)) for r in prepared)
+    return Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event)
 
 
 def protocols_present(dataset: Dataset) -> list[str]:

@@ -105,7 +105,7 @@ def score(dataset: Dataset, model_events: list[EventTable]) -> Score:
             z_ev = comp.residual[name] / dataset.event_sigma(i_run, name)
             z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
             zb = np.zeros(len(run.blocks))
-            irregular = [run.block_is_irregular(idx) for idx in run.blocks]
+            irregular = run.block_irregular or (False,) * len(run.blocks)
             for b, idx in enumerate(run.blocks):
                 active = np.isfinite(meas[idx])
                 if not active.any():
