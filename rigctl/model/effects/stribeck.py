@@ -24,7 +24,7 @@ class Stribeck(Effect):
     name = "stribeck"
     summary = "velocity weakening of kinetic friction"
     signature = "stress drop and trough depend on slip velocity / drive velocity"
-    reveal_protocol = "velocity steps over two decades of drive velocity"
+    reveal_protocol = "velocity steps at two normal loads (the slip velocity scales with Fn)"
     params = (
         ParamSpec("vs_m_per_s", 5e-3, 0.0, 10.0, "m/s", "Stribeck velocity v_s", off=0.0),
         ParamSpec("d", 1.0, 0.2, 4.0, "-", "Stribeck exponent d", identify=False, off=1.0),
