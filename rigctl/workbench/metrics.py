@@ -63,7 +63,7 @@ def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
 
 def compare_run(run: PreparedRun, model_events: EventTable) -> RunComparison:
     meas = run.events
-    match = match_events(meas, model_events)
+    match = match_events(meas, model_events, run.drive)
     paired = match >= 0
     residual: dict[str, FloatArray] = {}
     missing: dict[str, np.ndarray] = {}
@@ -74,7 +74,7 @@ def compare_run(run: PreparedRun, model_events: EventTable) -> RunComparison:
         residual[name] = _residual(name, mv, model_v)
         missing[name] = np.isfinite(mv) & ~np.isfinite(residual[name])
     init = _residual(INIT_FEATURE, meas.init_k_N_per_m, model_events.init_k_N_per_m)
-    spur = spurious_counts(meas, model_events, run.drive.n_segments())
+    spur = spurious_counts(meas, model_events, run.drive.n_segments(), run.drive)
     return RunComparison(match, residual, missing, init, spur)
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rigctl.workbench.alignment import match_events, spurious_counts
+from rigctl.workbench.alignment import HOLD_TIE_S, match_events, pairing_segments, spurious_counts
 from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings
@@ -47,6 +47,30 @@ def test_segments_without_model_slips_are_unpaired_and_extra_model_slips_are_spu
     model = _table([2.0, 55.0, 58.0], [0, 1, 1])
     assert match_events(meas, model).tolist() == [0, 0]
     assert spurious_counts(meas, model, 2).tolist() == [0, 2]
+
+
+def _slide_hold_slide() -> DriveProfile:
+    # slide 0-10 s, hold 10-40 s, slide 40-50 s at 10 um/s
+    t = np.array([0.0, 10.0, 40.0, 50.0])
+    x = np.array([0.0, 1e-4, 1e-4, 2e-4])
+    return DriveProfile(t, x, np.full(t.size, 300.0), 0.0)
+
+
+def test_a_slip_at_the_stop_pairs_with_a_slip_at_the_restart():
+    drive = _slide_hold_slide()
+    assert drive.phase_is_hold.tolist() == [False, True, False]
+    # the measurement slipped as the stage stopped; the model a whole hold later, as it restarted
+    meas = _table([3.0, 6.0, 10.0 + 0.5 * HOLD_TIE_S, 42.0, 45.0], [0, 0, 1, 2, 2])
+    model = _table([3.0, 6.0, 40.01, 42.0, 45.0], [0, 0, 2, 2, 2])
+    assert pairing_segments(meas, drive).tolist() == [0, 0, 2, 2, 2]
+    assert match_events(meas, model, drive).tolist() == [0, 1, 2, 3, 4]
+    assert spurious_counts(meas, model, 3, drive).tolist() == [0, 0, 0]
+    # without the drive the tie is not seen: the restart slip is paired with a regular slip
+    assert match_events(meas, model).tolist() == [0, 1, -1, 2, 4]
+    # a slip well into the hold (creep, a delayed failure) keeps its segment
+    late = _table([3.0, 6.0, 25.0, 42.0, 45.0], [0, 0, 1, 2, 2])
+    assert pairing_segments(late, drive).tolist() == [0, 0, 1, 2, 2]
+    assert match_events(late, model, drive).tolist() == [0, 1, -1, 2, 4]
 
 
 def test_error_is_zero_for_identical_events_and_grows_with_a_systematic_offset():
