@@ -97,14 +97,9 @@ def _scan(
         except ValueError:
             continue
         if not physically_valid(choice.with_values(pt), fns):
-            pt = dict(raw_pt)
-            if not physically_valid(choice.with_values(pt), fns):
-                continue
-        try:
-            vec = evaluate(dataset, choice.with_values(pt)).score.vector
-        except ValueError:
-            continue
-        if np.all(np.isfinite(vec)):
+            pt = dict(raw_pt)  # valid: checked above
+        vec = _vector_or_none(dataset, choice.with_values(pt), fns)
+        if vec is not None and np.all(np.isfinite(vec)):
             evaluated.append((pt, vec))
     if not evaluated:
         return [(np.inf, dict(points[0]))], None
@@ -120,55 +115,65 @@ def _scan(
             J_base = J_effect_on = J_on
             ranked = _rank_points(evaluated, J_base)
     starts: list[tuple[float, dict[str, float]]] = []
-    for _, e_raw, pt, gn_step in ranked[:n_check]:
+    for _, e_raw, pt, vec, gn_step in ranked[:n_check]:
         best_here: tuple[float, dict[str, float]] = (e_raw, dict(pt))
         if gn_step is not None and J_base is not None:
             u_pt = np.array([fp.to_u(pt[fp.name]) for fp in base_free])
-            best_here = _gauss_newton_base(dataset, choice, base_free, J_base, pt, u_pt, gn_step,
-                                           (lo, hi), fns, best_here)
+            best_here = _gauss_newton_base(dataset, choice, base_free, J_base, pt, vec, u_pt,
+                                           gn_step, (lo, hi), fns, best_here)
         starts.append(best_here)
     starts.sort(key=lambda x: x[0])
     return starts[:n_keep], J_effect_on
 
 
+def _vector_or_none(dataset: Dataset, choice: ModelChoice,
+                    fns: tuple[float, float]) -> np.ndarray | None:
+    """The model's residual vector, or None when it is not physically valid or cannot be run."""
+    if not physically_valid(choice, fns):
+        return None
+    try:
+        return evaluate(dataset, choice).score.vector
+    except ValueError:
+        return None
+
+
 def _rank_points(
     evaluated: list[tuple[dict[str, float], np.ndarray]], J: np.ndarray | None,
-) -> list[tuple[float, float, dict[str, float], np.ndarray | None]]:
-    """(predicted cost after a Gauss-Newton step, raw cost, point, step), best first."""
-    out: list[tuple[float, float, dict[str, float], np.ndarray | None]] = []
+) -> list[tuple[float, float, dict[str, float], np.ndarray, np.ndarray | None]]:
+    """(predicted cost after a Gauss-Newton step, raw cost, point, its residual vector, step),
+    best first."""
+    out: list[tuple[float, float, dict[str, float], np.ndarray, np.ndarray | None]] = []
     pinv = np.linalg.pinv(J, rcond=1e-8) if J is not None and J.shape[1] else None
     for pt, vec in evaluated:
         raw = float(vec @ vec)
         if pinv is not None and J is not None:
             step = -pinv @ vec
             pred = vec + J @ step
-            out.append((float(pred @ pred), raw, pt, step))
+            out.append((float(pred @ pred), raw, pt, vec, step))
         else:
-            out.append((raw, raw, pt, None))
+            out.append((raw, raw, pt, vec, None))
     out.sort(key=lambda x: x[0])
     return out
 
 
 def _gauss_newton_base(
     dataset: Dataset, choice: ModelChoice, base_free: list[FreeParam], J: np.ndarray,
-    pt: dict[str, float], u_b: np.ndarray, step: np.ndarray,
+    pt: dict[str, float], vec_pt: np.ndarray, u_b: np.ndarray, step: np.ndarray,
     bounds: tuple[np.ndarray, np.ndarray], fns: tuple[float, float],
     best: tuple[float, dict[str, float]], iterations: int = GN_SCAN_ITERATIONS,
 ) -> tuple[float, dict[str, float]]:
-    """A few Gauss-Newton steps of the base parameters at a scan point, the Jacobian corrected
-    after each by a Broyden rank-one update (one simulation per step)."""
+    """A few Gauss-Newton steps of the base parameters at a scan point (``vec_pt``: its residual
+    vector, from the scan), the Jacobian corrected after each by a Broyden rank-one update (one
+    simulation per step)."""
     u = u_b.copy()
-    vec_prev = evaluate(dataset, choice.with_values(pt)).score.vector
+    vec_prev = vec_pt
     J = J.copy()
     for _ in range(iterations):
         u_new = np.clip(u + step, bounds[0], bounds[1])
         moved = {fp.name: fp.to_p(float(x)) for fp, x in zip(base_free, u_new, strict=True)}
         values = {**pt, **moved}
-        if not physically_valid(choice.with_values(values), fns):
-            break
-        try:
-            vec = evaluate(dataset, choice.with_values(values)).score.vector
-        except ValueError:
+        vec = _vector_or_none(dataset, choice.with_values(values), fns)
+        if vec is None:
             break
         cost = float(vec @ vec)
         if cost < best[0]:
