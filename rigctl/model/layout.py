@@ -1,9 +1,10 @@
 """Index layout of the flat arrays the compiled kernel works on.
 
-The kernel (:mod:`rigctl.model.kernel`) is compiled with numba, so the model reaches it as one float
-parameter vector, one float state vector and one integer state vector. This module is the single
-source of truth for what each slot means; :mod:`rigctl.model.spec` fills the parameter vector from
-the typed parameters and effects.
+The kernel (:mod:`rigctl.model.kernel`) is compiled with numba, so the model reaches it as small
+typed arrays: one float parameter vector, the element weight table, one float and one integer state
+vector, the input knots, the output table and the event table. This module is the single source of
+truth for what each slot, row and column means; :mod:`rigctl.model.spec` fills the parameter vector
+and the weight table from the typed parameters and effects.
 """
 
 from __future__ import annotations
@@ -68,6 +69,34 @@ I_NEVENT = 6  # number of events written to the event table
 I_SLIPPED = 7  # a global slip ran since the last output sample (phase flag)
 I_CHATTER = 8  # sample intervals where the event budget ran out (events skipped, see kernel)
 N_ISTATE = 9
+
+# --- element weight table (float64, one row per kind, one column per element) ----------------
+W_INITIAL = 0  # threshold share of each element in the initial stage, P_linear(i) m_i [-]
+W_STABLE = 1  # threshold share of each element in the stable stage, P_uniform m_i [-]
+W_UNIFORM = 2  # uniform load share 1/N (kinetic friction at re-stick) [-]
+N_WROWS = 3
+# (W_INITIAL and W_STABLE equal the stage numbers 0 and 1 of I_STAGE: row = stage)
+
+# --- input knots (float64, one row per input, one column per knot) ---------------------------
+K_T = 0  # knot time [s]
+K_XS = 1  # stage position x_stage at the knot [m]
+K_FN = 2  # input normal force at the knot [N]
+N_KROWS = 3
+
+# --- output tables (one row per channel, one column per output sample) -----------------------
+# channel-major so that every channel is one contiguous array (SimResult takes views of the rows);
+# one table per dtype, so that a sample costs what its values need (memory traffic of long runs)
+O_FT = 0  # force-sensor output Ft [N]
+O_FI = 1  # interface force F_interface [N]
+O_X = 2  # specimen position X [m]
+O_V = 3  # specimen velocity [m/s]
+O_XS = 4  # stage position x_stage [m]
+O_FN = 5  # effective normal force [N]
+N_OROWS = 6  # rows of the float64 output table
+F_STAGE = 0  # 0 initial, 1 stable
+F_SLIP = 1  # 1 if a global slip ran since the previous sample, else 0
+N_FROWS = 2  # rows of the uint8 flag table
+# (the element modes, N per sample, are a third table, int8: elem[sample, element])
 
 FN_CONTACT_MIN_N = 0.01
 """Below this normal force (half a force-sensor count) the specimens are treated as apart: the

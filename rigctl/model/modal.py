@@ -18,15 +18,28 @@ from __future__ import annotations
 
 import cmath
 import math
+from typing import NamedTuple
 
 from numba import njit
+
+
+class ModalSolution(NamedTuple):
+    """X(tau) = a + b tau + Re(c1 exp(l1 tau) + c2 exp(l2 tau)) (compiled code passes it by value)."""
+
+    a: float
+    b: float
+    c1: complex
+    c2: complex
+    l1: complex
+    l2: complex
+
 
 
 @njit(cache=True)
 def modal_solution(
     m: float, c: float, k: float, f0: float, f1: float, x0: float, v0: float
-) -> tuple[float, float, complex, complex, complex, complex]:
-    """Return (a, b, c1, c2, l1, l2) of the exact solution from X(0) = x0, X'(0) = v0."""
+) -> ModalSolution:
+    """The exact solution from X(0) = x0, X'(0) = v0."""
     disc = complex(c * c - 4.0 * m * k)
     root = cmath.sqrt(disc)
     if abs(root) < 1e-9 * (abs(c) + math.sqrt(abs(m * k)) + 1e-300):
@@ -40,23 +53,19 @@ def modal_solution(
     du0 = v0 - b
     c2 = (du0 - l1 * u0) / (l2 - l1)
     c1 = u0 - c2
-    return a, b, c1, c2, l1, l2
+    return ModalSolution(a, b, c1, c2, l1, l2)
 
 
 @njit(cache=True)
-def position(
-    a: float, b: float, c1: complex, c2: complex, l1: complex, l2: complex, tau: float
-) -> float:
+def position(s: ModalSolution, tau: float) -> float:
     """X(tau) of the modal solution."""
-    return a + b * tau + (c1 * cmath.exp(l1 * tau) + c2 * cmath.exp(l2 * tau)).real
+    return s.a + s.b * tau + (s.c1 * cmath.exp(s.l1 * tau) + s.c2 * cmath.exp(s.l2 * tau)).real
 
 
 @njit(cache=True)
-def velocity(
-    b: float, c1: complex, c2: complex, l1: complex, l2: complex, tau: float
-) -> float:
+def velocity(s: ModalSolution, tau: float) -> float:
     """X'(tau) of the modal solution."""
-    return b + (c1 * l1 * cmath.exp(l1 * tau) + c2 * l2 * cmath.exp(l2 * tau)).real
+    return s.b + (s.c1 * s.l1 * cmath.exp(s.l1 * tau) + s.c2 * s.l2 * cmath.exp(s.l2 * tau)).real
 
 
 @njit(cache=True)
@@ -67,12 +76,7 @@ def filtered_drive_force(
     c0: float,
     xs0: float,
     vs: float,
-    a: float,
-    b: float,
-    c1: complex,
-    c2: complex,
-    l1: complex,
-    l2: complex,
+    s: ModalSolution,
     tau: float,
 ) -> float:
     """Exact output at tau of y' = rate (Fs - y), y(0) = y0, with Fs from the modal solution.
@@ -81,6 +85,7 @@ def filtered_drive_force(
     p1 = K0 (vs - b), q_j = -(K0 + C0 l_j) c_j. The affine part is followed with lag 1/rate; each
     exponential contributes q_j rate (exp(l_j tau) - exp(-rate tau)) / (l_j + rate).
     """
+    a, b, c1, c2, l1, l2 = s
     p0 = k0 * (xs0 - a) + c0 * (vs - b)
     p1 = k0 * (vs - b)
     e = math.exp(-rate * tau)

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from rigctl.model import layout
 from rigctl.model.drive import Drive, check_fn
 from rigctl.model.effects import CoreParams, SlipContext
-from rigctl.model.kernel import _write_sample, advance
+from rigctl.model.kernel import advance, state_sample
 from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError
 from rigctl.model.result import SimResult, SlipEvent
@@ -25,6 +26,17 @@ ProgressFn = Callable[[float, float], None]
 """progress(t_done_s, t_total_s)"""
 
 
+class Outputs(NamedTuple):
+    """What the kernel writes per sample: the output table, the flag table, the element modes."""
+
+    table: np.ndarray
+    """float64, rows ``layout.O_*``, one column per sample"""
+    flags: np.ndarray
+    """uint8, rows ``layout.F_*``, one column per sample"""
+    elements: np.ndarray
+    """int8, one row per sample (one row in all when not recorded), one column per element"""
+
+
 class _Integration:
     """Integrator state (kernel arrays) and the glue that calls hooks between kernel calls."""
 
@@ -32,7 +44,7 @@ class _Integration:
         self.setup = setup
         self.cp = setup.cp.copy()
         self.core = CoreParams(self.cp)
-        n = setup.pw0.shape[0]
+        n = setup.weights.shape[1]
         self.n = n
         self.fs = np.zeros(layout.N_FSTATE)
         self.ist = np.zeros(layout.N_ISTATE, dtype=np.int64)
@@ -60,14 +72,17 @@ class _Integration:
         t_out: np.ndarray,
         record_elements: bool,
         progress: ProgressFn | None = None,
-    ) -> dict[str, np.ndarray]:
+    ) -> Outputs:
         n_out = t_out.shape[0]
-        out: dict[str, np.ndarray] = {
-            "ft": np.empty(n_out), "fi": np.empty(n_out), "x": np.empty(n_out),
-            "v": np.empty(n_out), "xs": np.empty(n_out), "fn": np.empty(n_out),
-            "stage": np.empty(n_out, dtype=np.uint8), "slip": np.empty(n_out, dtype=np.uint8),
-            "elem": np.zeros((n_out if record_elements else 1, self.n), dtype=np.int8),
-        }
+        knots = np.empty((layout.N_KROWS, kt_t.shape[0]))
+        knots[layout.K_T] = kt_t
+        knots[layout.K_XS] = kt_xs
+        knots[layout.K_FN] = kt_fn
+        out = Outputs(
+            np.empty((layout.N_OROWS, n_out)),
+            np.empty((layout.N_FROWS, n_out), dtype=np.uint8),
+            np.zeros((n_out if record_elements else 1, self.n), dtype=np.int8),
+        )
         self.ist[layout.I_KNOT] = 0
         self.ist[layout.I_OUT] = 0
         t_end = float(kt_t[-1])
@@ -77,11 +92,8 @@ class _Integration:
         while True:
             t_stop = min(t_end, self.fs[layout.S_T] + chunk)
             code = advance(
-                self.cp, self.fs, self.ist, self.g, self.mode,
-                self.setup.pw0, self.setup.pw1, self.setup.p_uni,
-                kt_t, kt_xs, kt_fn, t_out,
-                out["ft"], out["fi"], out["x"], out["v"], out["xs"], out["fn"],
-                out["stage"], out["slip"], out["elem"], self.ev,
+                self.cp, self.setup.weights, self.fs, self.ist, self.g, self.mode,
+                knots, t_out, out.table, out.flags, out.elements, self.ev,
                 t_stop, bool(hooks), record_elements,
             )
             if code == layout.RET_EVENT_TABLE_FULL:
@@ -137,17 +149,19 @@ class _Integration:
         return new
 
     def result(
-        self, out: dict[str, np.ndarray], t_out: np.ndarray, new_events: list[SlipEvent],
+        self, out: Outputs, t_out: np.ndarray, new_events: list[SlipEvent],
         record_elements: bool,
     ) -> SimResult:
-        x = out["x"]
+        tab = out.table
+        x = tab[layout.O_X]
         delta = x - self.fs[layout.S_X_INIT]
-        elem = out["elem"] if record_elements else np.zeros((t_out.shape[0], self.n), np.int8)
+        elem = out.elements if record_elements else np.zeros((t_out.shape[0], self.n), np.int8)
         res = SimResult(
-            t_s=t_out.copy(), x_stage_m=out["xs"], fn_N=out["fn"], ft_N=out["ft"],
-            f_interface_N=out["fi"], x_specimen_m=x, v_specimen_m_s=out["v"], delta_m=delta,
-            d1_m=delta.copy(), d2_m=np.zeros_like(delta), stage=out["stage"],
-            slipping=out["slip"].astype(bool), element_mode=elem,
+            t_s=t_out.copy(), x_stage_m=tab[layout.O_XS], fn_N=tab[layout.O_FN],
+            ft_N=tab[layout.O_FT], f_interface_N=tab[layout.O_FI], x_specimen_m=x,
+            v_specimen_m_s=tab[layout.O_V], delta_m=delta, d1_m=delta.copy(),
+            d2_m=np.zeros_like(delta), stage=out.flags[layout.F_STAGE],
+            slipping=out.flags[layout.F_SLIP].view(np.bool_), element_mode=elem,
             p_tables=self.setup.p_tables, events=new_events,
         )
         for entry in self.setup.output_hooks:
@@ -270,21 +284,17 @@ class Stepper:
     @property
     def state(self) -> StepperState:
         integ = self._integ
-        st = np.empty(1, dtype=np.uint8)
-        sl = np.empty(1, dtype=np.uint8)
+        tab = np.empty((layout.N_OROWS, 1))
+        flags = np.empty((layout.N_FROWS, 1), dtype=np.uint8)
         el = np.empty((1, integ.n), dtype=np.int8)
-        outs: list[np.ndarray] = [np.empty(1) for _ in range(6)]
-        slipped = integ.ist[layout.I_SLIPPED]
-        _write_sample(
-            integ.cp, integ.fs, integ.ist, integ.g, integ.mode, integ.setup.pw0,
-            integ.setup.pw1, 0, self._xs, 0.0, self._fn,
-            outs[0], outs[1], outs[2], outs[3], outs[4], outs[5], st, sl, el, True,
+        state_sample(
+            integ.cp, integ.setup.weights, integ.fs, integ.ist, integ.g, integ.mode,
+            self._xs, self._fn, tab, flags, el,
         )
-        integ.ist[layout.I_SLIPPED] = slipped
         stage = int(integ.ist[layout.I_STAGE])
         return StepperState(
-            t_s=self.t_s, x_stage_m=self._xs, fn_N=float(outs[5][0]), ft_N=float(outs[0][0]),
-            f_interface_N=float(outs[1][0]),
+            t_s=self.t_s, x_stage_m=self._xs, fn_N=float(tab[layout.O_FN, 0]),
+            ft_N=float(tab[layout.O_FT, 0]), f_interface_N=float(tab[layout.O_FI, 0]),
             delta_m=float(integ.fs[layout.S_X] - integ.fs[layout.S_X_INIT]),
             x_specimen_m=float(integ.fs[layout.S_X]), v_specimen_m_s=float(integ.fs[layout.S_V]),
             stage=stage, p_elements=integ.setup.p_tables[stage].copy(),

@@ -42,9 +42,8 @@ class CoreSetup:
     """Everything the integrator needs, built from a ModelSpec."""
 
     cp: np.ndarray
-    pw0: np.ndarray
-    pw1: np.ndarray
-    p_uni: np.ndarray
+    weights: np.ndarray
+    """Element weight table (rows ``layout.W_*``, one column per element)."""
     p_tables: np.ndarray
     theta0_s: float
     slip_hooks: tuple[EffectEntry, ...]
@@ -161,11 +160,13 @@ class ModelSpec:
                 theta0 = float(theta_fn(e.values))
         p_lin = p_linear(n, float(cp[layout.P_PSLOPE]))
         p_uni = np.full(n, 1.0 / n)
+        weights = np.empty((layout.N_WROWS, n))
+        weights[layout.W_INITIAL] = p_lin * factors
+        weights[layout.W_STABLE] = p_uni * factors
+        weights[layout.W_UNIFORM] = p_uni
         return CoreSetup(
             cp=cp,
-            pw0=np.ascontiguousarray(p_lin * factors),
-            pw1=np.ascontiguousarray(p_uni * factors),
-            p_uni=p_uni,
+            weights=weights,
             p_tables=np.vstack([p_lin, p_uni]),
             theta0_s=theta0,
             slip_hooks=tuple(e for e in self.effects if e.effect.has_slip_hook()),

@@ -10,7 +10,7 @@ An event cannot happen before the next sample if the ringing amplitude R = sqrt(
 (s = C/2M, w the damped frequency; |u(t)| <= R and |u'(t)| <= R sqrt(K/M) for all later t) keeps X
 below the lowest forward threshold and above the highest backward one, and V away from zero while
 elements presliding at their threshold could stick again. When the bound cannot rule an event out the
-general step of :mod:`rigctl.model.kernel` (grid scan and bisection) takes over.
+general step of :mod:`rigctl.model.kernel.linear_step` (grid scan and bisection) takes over.
 """
 
 from __future__ import annotations
@@ -23,10 +23,18 @@ from numba import njit
 
 from rigctl.model.friction_laws import element_stiffness, mu_static
 from rigctl.model.layout import (
+    F_SLIP,
+    F_STAGE,
     I_GSLIP,
     I_OUT,
     I_SLIPPED,
     I_STAGE,
+    O_FI,
+    O_FN,
+    O_FT,
+    O_V,
+    O_X,
+    O_XS,
     P_C0,
     P_CINT,
     P_K0,
@@ -45,26 +53,19 @@ from rigctl.model.layout import (
 @njit(cache=True)
 def fast_stick_run(
     cp: np.ndarray,
+    weights: np.ndarray,
     fs: np.ndarray,
     ist: np.ndarray,
     g: np.ndarray,
     mode: np.ndarray,
-    pw0: np.ndarray,
-    pw1: np.ndarray,
     t_out: np.ndarray,
     t_end: float,
     xs_start: float,
     vs: float,
     fn: float,
-    o_ft: np.ndarray,
-    o_fi: np.ndarray,
-    o_x: np.ndarray,
-    o_v: np.ndarray,
-    o_xs: np.ndarray,
-    o_fn: np.ndarray,
-    o_stage: np.ndarray,
-    o_slip: np.ndarray,
-    o_elem: np.ndarray,
+    out: np.ndarray,
+    flags: np.ndarray,
+    elem: np.ndarray,
     record_elements: bool,
 ) -> int:
     """Advance sample by sample while no event is possible; return the number of samples written.
@@ -89,7 +90,7 @@ def fast_stick_run(
     k = element_stiffness(cp, stage, fn, n)
     if k != fs[S_K_USED]:
         return 0
-    pw = pw0 if stage == 0 else pw1
+    pw = weights[stage]
     m = cp[P_M]
     k0 = cp[P_K0]
     c0 = cp[P_C0]
@@ -168,18 +169,18 @@ def fast_stick_run(
         v = b + du
         xs = xs_start + vs * tau
         fe = fn
-        o_ft[io] = k0 * (xs - x) + c0 * (vs - v)
-        o_fi[io] = gsum + kst * x + csl * fe
-        o_x[io] = x
-        o_v[io] = v
-        o_xs[io] = xs
-        o_fn[io] = fe
-        o_stage[io] = stage
-        o_slip[io] = 1 if ist[I_SLIPPED] == 1 else 0
+        out[O_FT, io] = k0 * (xs - x) + c0 * (vs - v)
+        out[O_FI, io] = gsum + kst * x + csl * fe
+        out[O_X, io] = x
+        out[O_V, io] = v
+        out[O_XS, io] = xs
+        out[O_FN, io] = fe
+        flags[F_STAGE, io] = stage
+        flags[F_SLIP, io] = 1 if ist[I_SLIPPED] == 1 else 0
         ist[I_SLIPPED] = 0
         if record_elements:
             for i in range(n):
-                o_elem[io, i] = mode[i]
+                elem[io, i] = mode[i]
         fs[S_X] = x
         fs[S_V] = v
         fs[S_T] = t_next
