@@ -7,7 +7,7 @@ paper's constant values when the effect parameters that enter it are at their ``
   ``load_dependent_friction`` multiplies by (Fn/Fn_ref)^alpha_s; ``wear`` adds dmu_s; the aging part of
   ``rate_state`` adds b ln(1 + theta V_ref / Dc) (Dieterich 1979; Ruina 1983, aging law).
 * kinetic coefficient: mu_k, times (Fn/Fn_ref)^alpha_k, plus dmu_k; ``stribeck`` adds
-  (mu_s - mu_k) exp(-(|V|/v_s)^d) (Stribeck curve, as written in shared/spec/model.md);
+  (mu_s - mu_k) exp(-(|V|/v_s)^d) (Stribeck curve, docs/effects.md);
   ``rate_state`` adds a ln(1 + |V|/V_ref) + b ln(1 + theta V_ref / Dc) (regularised at V -> 0,
   Rice & Ben-Zion 1996).
 * element stiffness: Kt/N with Kt = Kt0 (initial) or Kts (stable) (paper Sec. 5.2);
@@ -45,7 +45,7 @@ from rigctl.model.layout import (
     P_VS,
 )
 
-_FN_FLOOR_N = 1e-6
+_FN_FLOOR_N = 1e-6  # power laws of Fn read Fn >= 1 uN: finite at Fn = 0 (negative exponents)
 
 
 @njit(cache=True)

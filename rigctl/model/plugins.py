@@ -19,7 +19,7 @@ from pathlib import Path
 from rigctl.model.effects import LIBRARY, Effect
 from rigctl.model.params import ParamSpec
 
-ENTRY_POINT_GROUP = "rigctl.effects"
+ENTRY_POINT_GROUP = "rigctl.effects"  # where installed packages register effects (docs/effects.md)
 
 
 class EffectPluginError(ValueError):

@@ -96,7 +96,7 @@ class SimResult:
         )
 
 
-_ARRAYS = (
+_ARRAYS = (  # the per-sample arrays of a SimResult, in the order of docs/model.md section 5
     "t_s", "x_stage_m", "fn_N", "ft_N", "f_interface_N", "x_specimen_m", "v_specimen_m_s",
     "delta_m", "d1_m", "d2_m", "stage", "slipping", "element_mode",
 )

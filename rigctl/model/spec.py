@@ -18,6 +18,7 @@ import numpy as np
 from rigctl.model import layout
 from rigctl.model.effects import LIBRARY, CoreParams, Effect
 from rigctl.model.effects.stress_evolution import p_linear
+from rigctl.model.friction_laws import mu_kinetic, mu_static
 from rigctl.model.params import BASE_PARAMS, ParameterError, ParamInfo, check_values
 
 BASES: dict[str, tuple[str, ...]] = {
@@ -155,9 +156,9 @@ class ModelSpec:
             f = e.effect.element_threshold_factors(e.values, n)
             if f is not None:
                 factors = factors * np.asarray(f, dtype=np.float64)
-            theta_fn = getattr(e.effect, "initial_theta_s", None)
-            if callable(theta_fn):
-                theta0 = float(theta_fn(e.values))
+            theta = e.effect.initial_theta_s(e.values)
+            if theta is not None:
+                theta0 = float(theta)
         p_lin = p_linear(n, float(cp[layout.P_PSLOPE]))
         p_uni = np.full(n, 1.0 / n)
         weights = np.empty((layout.N_WROWS, n))
@@ -172,6 +173,33 @@ class ModelSpec:
             slip_hooks=tuple(e for e in self.effects if e.effect.has_slip_hook()),
             output_hooks=tuple(e for e in self.effects if e.effect.has_output_hook()),
         )
+
+    def invalid_reason(self, fn_range_N: tuple[float, float] = (0.0, 0.0)) -> str | None:
+        """Why this model cannot stick-slip, in one line; None when it can.
+
+        Kinetic friction must stay below static friction: mu_k < mu_s of the base, what each
+        effect states for its own parameters (:meth:`Effect.invalid_reason`), and, with the
+        engine's own friction laws (so coefficients set by any effect or plug-in count), mu_k at
+        V = 0 at most mu_s of either stage at the lowest and highest normal force of
+        ``fn_range_N``. The engine does not finish a run that breaks it.
+        """
+        bv = self.base_values
+        if bv["mu_k"] >= bv["mu_s"]:
+            return f"mu_k ({bv['mu_k']:g}) reaches mu_s ({bv['mu_s']:g})"
+        for e in self.effects:
+            reason = e.effect.invalid_reason(e.values, bv)
+            if reason is not None:
+                return reason
+        cp = self.core_setup().cp
+        # at Fn = 0 the load-dependent power laws degenerate; an unloaded end is checked at 1 mN
+        for fn in sorted({max(fn_range_N[0], 1e-3), max(fn_range_N[1], 1e-3)}):
+            mk = mu_kinetic(cp, fn, 0.0, 0.0)
+            for stage in (1, 0):
+                ms = mu_static(cp, stage, fn, 0.0)
+                if mk > ms:
+                    return (f"kinetic friction {mk:.6g} exceeds the static friction {ms:.6g} of "
+                            f"the {('initial', 'stable')[stage]} stage at Fn = {fn:g} N")
+        return None
 
     def describe(self) -> str:
         added = ", ".join(self.effect_names) or "none"

@@ -98,31 +98,10 @@ class FitResult:
 
 
 def physically_valid(choice: ModelChoice, fn_range_N: tuple[float, float] = (0.0, 0.0)) -> bool:
-    """Kinetic friction stays below static friction over the campaign's normal forces.
-
-    Checked with the engine's own friction laws (``rigctl.model.friction_laws``, so load-dependent
-    friction and plug-ins acting on the coefficients are included) at the lowest and highest Fn,
-    for the initial and the stable stage, and for ``wear`` at its asymptote. Stick-slip needs it, and
-    the engine does not finish a run without it (reported to its owner), so such points count as
-    failed evaluations.
-    """
-    v = choice.values
-    if "mu_k" in v and any(v["mu_k"] >= v[n] for n in ("mu_s", "mu_smax") if n in v):
-        return False
-    if ("wear.dmu_s" in v and "mu_k" in v and "mu_s" in v
-            and v["mu_k"] + v.get("wear.dmu_k", 0.0) >= v["mu_s"] + v["wear.dmu_s"]):
-        return False
-    try:
-        from rigctl.model.friction_laws import mu_kinetic, mu_static
-
-        cp = choice.build().core_setup().cp
-        for fn in {max(fn_range_N[0], 1e-3), max(fn_range_N[1], 1e-3)}:
-            mk = mu_kinetic(cp, fn, 0.0, 0.0)
-            if mk > mu_static(cp, 1, fn, 0.0) or mk > mu_static(cp, 0, fn, 0.0):
-                return False
-    except (ImportError, AttributeError, TypeError):
-        return True
-    return True
+    """The model can stick-slip over the campaign's normal forces (:meth:`ModelSpec.invalid_reason`:
+    the base, each effect's own rule, the engine's friction laws at the lowest and highest Fn).
+    The engine does not finish a run without it, so such points count as failed evaluations."""
+    return choice.build().invalid_reason(fn_range_N) is None
 
 
 class Objective:

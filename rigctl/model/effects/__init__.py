@@ -1,4 +1,4 @@
-"""The effect library: twelve named physical effects (shared/spec/model.md) and the plug-in base."""
+"""The effect library: twelve named physical effects (docs/effects.md) and the plug-in base."""
 
 from __future__ import annotations
 
@@ -33,6 +33,6 @@ LIBRARY: dict[str, type[Effect]] = {
         ProbeDrift,
     )
 }
-"""The canonical effects by name, in the order of shared/spec/model.md."""
+"""The canonical effects by name, in the order of docs/effects.md."""
 
 __all__ = ["LIBRARY", "CoreParams", "Effect", "SlipContext"]

@@ -102,12 +102,43 @@ class SlipContext:
 
 
 class Effect:
-    """Base class of every effect. Subclass, set the class attributes, override what you need."""
+    """Base class of every effect: one named physical mechanism added to the stick-slip model.
+
+    Built-in effects and plug-ins (docs/effects.md) implement the same contract. To write one,
+    subclass :class:`Effect` and follow these rules:
+
+    1. Declare the class attributes: ``name`` (a new Python identifier; it names the effect in model
+       specs, files and the CLI), ``summary`` (one line), ``signature`` (what the residual of a
+       model without the effect looks like), ``reveal_protocol`` (the protocol that best shows
+       it) and ``params``: one :class:`~rigctl.model.params.ParamSpec` per parameter, SI unit in
+       the name and in ``unit`` (``"-"`` if none), finite bounds with the default inside them.
+    2. Give every parameter an ``off`` value inside its bounds, or override :meth:`off_values` when
+       "off" depends on the base parameters. At its off values the effect leaves every output of
+       the model bit for bit as the model without it. At its defaults it changes something.
+    3. Act on the model only through the hooks, and override only those the effect needs:
+       :meth:`apply` sets the coefficients of ``core`` it owns before a run, :meth:`on_slip_end`
+       updates them after every global slip, :meth:`transform_output` changes the recorded
+       outputs, :meth:`element_threshold_factors` scales the elements' static thresholds and
+       :meth:`initial_theta_s` sets the rate-and-state variable at the start of a run. The engine
+       calls :meth:`on_slip_end` and :meth:`transform_output` only when they are overridden (a
+       run without slip hooks never stops at slips, so it is faster).
+    4. Hooks are deterministic functions of their arguments: no random numbers, clock, files or
+       global state. The same model, drive and seed give bit-identical results.
+    5. Keep no run state on the instance: one instance serves every run of a model (and runs may
+       be interleaved). What changes during a run lives in ``core``; :class:`SlipContext` gives
+       the slip count and the cumulative slip distance. Hooks set coefficients (never add to the
+       value they find) and only to finite numbers (:class:`CoreParams` refuses others).
+    6. State which parameter values are physically impossible (:meth:`invalid_reason`), such as
+       kinetic friction reaching static friction: fits skip such points instead of simulating
+       them. Bounds say what is plausible; ``invalid_reason`` says what cannot be.
+    7. Test the effect with :class:`rigctl.testing.EffectContract` (off-reduction, bounds,
+       determinism); the built-in effects pass it.
+    """
 
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     signature: ClassVar[str] = ""
-    """What its absence looks like in the residual of a model without it (shared/spec/model.md)."""
+    """What its absence looks like in the residual of a model without it (docs/effects.md)."""
     params: ClassVar[tuple[ParamSpec, ...]] = ()
     reveal_protocol: ClassVar[str] = ""
     """The protocol that best separates this effect from others (used in diagnosis advice)."""
@@ -140,6 +171,17 @@ class Effect:
         self, values: Mapping[str, float], n_elements: int
     ) -> np.ndarray | None:
         """Optional per-element multipliers of the static thresholds (presliding); None = all 1."""
+        return None
+
+    def initial_theta_s(self, values: Mapping[str, float]) -> float | None:
+        """Rate-and-state variable theta [s] at the start of a run; None leaves it to others (0)."""
+        return None
+
+    def invalid_reason(
+        self, values: Mapping[str, float], base: Mapping[str, float]
+    ) -> str | None:
+        """Why these values (with the base parameters ``base``) are physically impossible, in one
+        line naming the parameters; None when they are possible (the default)."""
         return None
 
     @classmethod

@@ -49,6 +49,14 @@ class StressEvolution(Effect):
             "p_slope": 0.0,
         }
 
+    def invalid_reason(
+        self, values: Mapping[str, float], base: Mapping[str, float]
+    ) -> str | None:
+        if base["mu_k"] >= values["mu_smax"]:
+            return (f"mu_k ({base['mu_k']:g}) reaches mu_smax ({values['mu_smax']:g}): no stick-slip "
+                    "in the initial stage")
+        return None
+
     def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
         core["kt0_N_per_m"] = values["kt0_N_per_m"]
         core["mu_smax"] = values["mu_smax"]

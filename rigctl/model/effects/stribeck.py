@@ -1,4 +1,4 @@
-"""``stribeck``: velocity weakening of the kinetic friction (shared/spec/model.md).
+"""``stribeck``: velocity weakening of the kinetic friction.
 
     mu_k(V) = mu_k + (mu_s - mu_k) exp(-(|V| / v_s)^d)
 
@@ -8,7 +8,8 @@ drop and the trough depend on the slip velocity. As the slip decelerates, the fr
 the law no faster than the elements' springs are loaded (d(mu Fn)/dt <= Kt |V|, elasto-plastic
 friction: Dupont, Hayward, Armstrong & Altpeter, IEEE TAC 47 (2002)), so the elements re-stick
 carrying mu_k plus what they took up, not mu_s; the effect then vanishes continuously as v_s -> 0
-(docs/model.md, "Re-stick with velocity-dependent friction"; kernel ``_cap_stribeck``).
+(docs/model.md, "Re-stick with velocity-dependent friction";
+``rigctl.model.kernel.nonlinear_slip.cap_stribeck``).
 Off: v_s = 0 (the exponential vanishes exactly).
 """
 

@@ -28,6 +28,16 @@ class Wear(Effect):
                   off=3e-4),
     )
 
+    def invalid_reason(
+        self, values: Mapping[str, float], base: Mapping[str, float]
+    ) -> str | None:
+        mu_s = base["mu_s"] + values["dmu_s"]
+        mu_k = base["mu_k"] + values["dmu_k"]
+        if mu_k >= mu_s:
+            return (f"wear: mu_k + dmu_k ({mu_k:g}) reaches mu_s + dmu_s ({mu_s:g}): no stick-slip "
+                    "once worn in")
+        return None
+
     def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
         core["dmu_s"] = 0.0
         core["dmu_k"] = 0.0
