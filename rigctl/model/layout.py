@@ -68,7 +68,8 @@ I_OUT = 5  # next output sample index
 I_NEVENT = 6  # number of events written to the event table
 I_SLIPPED = 7  # a global slip ran since the last output sample (phase flag)
 I_CHATTER = 8  # sample intervals where the event budget ran out (events skipped, see kernel)
-N_ISTATE = 9
+I_FAST = 9  # output samples written by the fast stick recurrence (diagnostic)
+N_ISTATE = 10
 
 # --- element weight table (float64, one row per kind, one column per element) ----------------
 W_INITIAL = 0  # threshold share of each element in the initial stage, P_linear(i) m_i [-]

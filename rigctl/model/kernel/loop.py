@@ -1,7 +1,8 @@
 """The main loop: walk the input knots and output samples, choosing a step for each interval.
 
-The step: the fast stick recurrence where it applies, the free step with the specimens apart, RK4
-for a global slip with velocity/state-dependent friction, otherwise the exact linear step.
+The step: the fast stick recurrence where it applies (constant inputs, no event possible before the
+next sample), the free step with the specimens apart, RK4 for a global slip with
+velocity/state-dependent friction, otherwise the exact linear step.
 """
 
 from __future__ import annotations
