@@ -50,12 +50,13 @@ get the slips wrong (rtol 1e-3: no slip at all in 20 s; 1e-4: slip times off by 
 WARM_UP_S = 0.5
 """Repeat a run this long before timing it (caches, branch predictors, numba dispatch).
 
-Not removed by any warm-up: in a fresh process glibc serves each run's output arrays (~0.5 MB each
-at 60 s) by fresh mmap pages and gives them back on free, so every run pays the page faults; once a
-larger block (an N = 100 run's element-mode table, 6 MB) has been freed, glibc's dynamic mmap
-threshold rises and the N = 10 runs get about 2x faster (MALLOC_MMAP_THRESHOLD_=67108864 does the
-same from the start). The headline figures are measured first, in the fresh-process state a user
-gets; ``realtime_n10_warm_allocator`` repeats the N = 10 measurement after the N = 100 runs."""
+Not removed by any warm-up: in a fresh process glibc serves each run's output tables (2.9 MB of
+float channels at 60 s) by fresh mmap pages and gives them back on free, so every run pays the page
+faults; once a larger block (an N = 100 run's element-mode table, 6 MB) has been freed, glibc's
+dynamic mmap threshold rises and the N = 10 runs get about 3-4x faster
+(MALLOC_MMAP_THRESHOLD_=67108864 does the same from the start). The headline figures are measured
+first, in the fresh-process state a user gets; ``realtime_n10_warm_allocator`` repeats the N = 10
+measurement after the N = 100 runs."""
 
 REFERENCE_RTOL = 1e-10
 REFERENCE_ATOL_M = 1e-15
