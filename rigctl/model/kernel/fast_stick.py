@@ -16,7 +16,8 @@ elements presliding at their threshold could stick again. The thresholds are bou
 sample interval: with ``normal_coupling`` they move linearly with the stage (Fn,eff = Fn + kappa K0
 (x_stage - X)), bounded by their values at the start plus the extreme rate; with the aging of
 ``rate_state`` (b > 0) they move monotonically with theta, so the extremes over the interval lie at
-its ends (aging would change the force of presliding elements, so it needs every element stuck).
+its ends; the force of presliding elements, which aging changes, is taken linear in time over each
+interval as in the general step, with the particular solution rebuilt per interval.
 When the bound cannot rule an event out the general step of :mod:`rigctl.model.kernel.linear_step`
 (grid scan and bisection) takes over.
 """
@@ -152,8 +153,9 @@ def fast_stick_run(
                 n_pos += 1
             else:
                 n_neg += 1
-    if aging and n_pos + n_neg > 0:
-        return 0  # aging changes the force of presliding elements: not constant coefficients
+    rebase = aging and n_pos + n_neg > 0
+    if rebase and kk0 != 0.0:
+        return 0  # aging presliding force under normal coupling changes the stiffness: general step
     mus = mu_static(cp, stage, fn, fs[S_THETA])
     lo, hi, lo_rate, hi_rate = _stuck_thresholds(g, mode, pw, k, mus, fn + kk0 * xs_start, kk0, vs)
     if n_stuck > 0 and not (math.isfinite(lo) and math.isfinite(hi)):
@@ -246,6 +248,69 @@ def fast_stick_run(
             fs[S_V] = v
             fs[S_T] = t_next
             fs[S_THETA] += dt
+            io += 1
+            written += 1
+        ist[I_OUT] = io
+        ist[I_FAST] += written
+        return written
+    if rebase:
+        # aging changes the force of presliding elements mus(theta) spm Fn: as in the general step,
+        # over each interval it is taken linear in time between its values at the ends, so the
+        # particular solution (a, b) is rebuilt per interval; the stiffness, hence Phi, is constant
+        while io < n_out:
+            t_next = t_out[io]
+            if t_next > t_end or abs((t_next - t0) - (tau + dt)) > 1e-9 * dt + 1e-15:
+                break
+            mus_b = mu_static(cp, stage, fn, fs[S_THETA] + dt)
+            xs_a = xs_start + vs * tau
+            q_a = mus * spm * fn
+            q1 = (mus_b * spm * fn - q_a) / dt
+            b = (k0 * vs - q1) / kk
+            a = (k0 * xs_a + c0 * vs - gsum - q_a - cc * b) / kk
+            u = fs[S_X] - a
+            du = fs[S_V] - b
+            amp = math.sqrt(u * u + ((du + sig * u) / wd) ** 2)
+            lo_a, hi_a, _, _ = _stuck_thresholds(g, mode, pw, k, mus, fn, 0.0, vs)
+            lo_b, hi_b, _, _ = _stuck_thresholds(g, mode, pw, k, mus_b, fn, 0.0, vs)
+            xb = a + b * dt
+            if max(a, xb) + amp >= min(lo_a, lo_b) or min(a, xb) - amp <= max(hi_a, hi_b):
+                break
+            if n_pos > 0 and b - amp * wn <= 0.0:
+                break
+            if n_neg > 0 and b + amp * wn >= 0.0:
+                break
+            un = p11 * u + p12 * du
+            dun = p21 * u + p22 * du
+            x = xb + un
+            v = b + dun
+            xs = xs_a + vs * dt
+            if filtered:
+                q0 = k0 * (xs_a - a) + c0 * (vs - b)
+                p1 = k0 * (vs - b)
+                w = fs[S_YF] - (q0 - p1 * tau_s)
+                w = ew * w + wu * u + wdu * du
+                y = q0 + p1 * (dt - tau_s) + w
+                fs[S_YF] = y
+                out[O_FT, io] = y
+            else:
+                out[O_FT, io] = k0 * (xs - x) + c0 * (vs - v)
+            out[O_FI, io] = gsum + kst * x + mus_b * spm * fn
+            out[O_X, io] = x
+            out[O_V, io] = v
+            out[O_XS, io] = xs
+            out[O_FN, io] = fn
+            flags[F_STAGE, io] = stage
+            flags[F_SLIP, io] = 1 if ist[I_SLIPPED] == 1 else 0
+            ist[I_SLIPPED] = 0
+            if record_elements:
+                for i in range(n):
+                    elem[io, i] = mode[i]
+            fs[S_X] = x
+            fs[S_V] = v
+            fs[S_T] = t_next
+            fs[S_THETA] += dt
+            tau = t_next - t0
+            mus = mus_b
             io += 1
             written += 1
         ist[I_OUT] = io
