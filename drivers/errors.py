@@ -24,6 +24,8 @@ Hierarchy::
     +-- DeviceStateError         command not valid in the current state (e.g. set_rate while
     |                            streaming)
     +-- MotionTimeout            a stage did not finish its move within the time asked for
+
+    SettingError                 (a ValueError) a configuration value out of its bounds
 """
 
 from __future__ import annotations
@@ -120,11 +122,29 @@ class InvalidValueError(DeviceError, ValueError):
 class LimitError(InvalidValueError):
     """A command beyond a configured limit; refused before anything is sent, never clipped."""
 
-    def __init__(self, device: str, quantity: str, value: float, limit: float, unit: str) -> None:
+    def __init__(
+        self, device: str, quantity: str, value: float, limit: float, unit: str, *, reason: str = ""
+    ) -> None:
         self.limit = limit
         self.unit = unit
         relation = "above the maximum" if value > limit else "below the minimum"
-        super().__init__(device, quantity, value, f"{value:.6g} {unit} is {relation} {limit:.6g} {unit}")
+        reason = reason or f"{value:.6g} {unit} is {relation} {limit:.6g} {unit}"
+        super().__init__(device, quantity, value, reason)
+
+
+class SettingError(ValueError):
+    """A configuration value a device or simulator cannot work with; ``key`` names it.
+
+    Raised by the configuration classes' own checks; a configuration loader reports it under the
+    key's full path (``normal_stage.limits.max_position_m: must be above ...``).
+    """
+
+    def __init__(self, owner: str, key: str, value: object, reason: str) -> None:
+        self.owner = owner
+        self.key = key
+        self.value = value
+        self.reason = reason
+        super().__init__(f"{owner}: {key} = {value!r}: {reason}")
 
 
 class ForceLimitError(DeviceError):

@@ -32,6 +32,7 @@ from drivers.errors import (
     LimitError,
     MotionTimeout,
     NotSupportedError,
+    SettingError,
     StageAlarm,
     stage_alarm_name,
 )
@@ -120,7 +121,16 @@ class Device(ABC):  # noqa: B024 - an ABC for shared naming/closing; abstract ho
 
 @dataclass(frozen=True)
 class StageLimits:
-    """Allowed travel and speed of a stage, in metres and metres per second."""
+    """Allowed travel and speed of one stage, in metres and metres per second.
+
+    The one description of an axis's limits, and the one place a move is checked against them:
+    :meth:`LoadingStage.move_absolute` calls :meth:`check_move` before anything is sent, and the
+    dry run of a protocol calls the same methods before anything moves, so the two refuse the
+    same moves with the same message::
+
+        limits = StageLimits(min_position_m=0.0, max_position_m=0.2, max_velocity_m_s=5e-3)
+        limits.check_move("tangential", 0.25, 1e-5)   # LimitError: target_m = 0.25 refused: ...
+    """
 
     min_position_m: float
     max_position_m: float
@@ -130,16 +140,45 @@ class StageLimits:
         for key in ("min_position_m", "max_position_m", "max_velocity_m_s"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"StageLimits.{key} must be a number, got {value!r}")
+                raise SettingError("StageLimits", key, value, "must be a number")
             if not math.isfinite(value):
-                raise ValueError(f"StageLimits.{key} must be finite, got {value!r}")
+                raise SettingError("StageLimits", key, value, "must be finite")
         if not self.min_position_m < self.max_position_m:
-            raise ValueError(
-                f"StageLimits: min_position_m ({self.min_position_m}) must be below "
-                f"max_position_m ({self.max_position_m})"
+            raise SettingError(
+                "StageLimits", "max_position_m", self.max_position_m,
+                f"must be above min_position_m ({self.min_position_m:g} m), "
+                f"got {self.max_position_m:g} m",
             )
         if not self.max_velocity_m_s > 0:
-            raise ValueError(f"StageLimits.max_velocity_m_s must be > 0, got {self.max_velocity_m_s}")
+            raise SettingError("StageLimits", "max_velocity_m_s", self.max_velocity_m_s, "must be > 0")
+
+    def check_target(self, device: str, target_m: object) -> float:
+        """``target_m`` as a float if it is a finite position within the travel, else an error."""
+        target = finite(device, "target_m", target_m)
+        low, high = self.min_position_m, self.max_position_m
+        stroke = f"outside the stroke [{low:g}, {high:g}] m"
+        if target > high:
+            raise LimitError(device, "target_m", target, high, "m",
+                             reason=f"target {target:.6g} m is above the maximum {high:.6g} m, {stroke}")
+        if target < low:
+            raise LimitError(device, "target_m", target, low, "m",
+                             reason=f"target {target:.6g} m is below the minimum {low:.6g} m, {stroke}")
+        return target
+
+    def check_velocity(self, device: str, velocity_m_s: object, quantity: str = "velocity_m_s") -> float:
+        """``velocity_m_s`` as a float if it is finite, > 0 and within the speed limit, else an error."""
+        velocity = finite(device, quantity, velocity_m_s)
+        if velocity <= 0:
+            raise InvalidValueError(device, quantity, velocity_m_s, "must be > 0")
+        high = self.max_velocity_m_s
+        if velocity > high:
+            raise LimitError(device, quantity, velocity, high, "m/s",
+                             reason=f"velocity {velocity:.6g} m/s exceeds the limit {high:.6g} m/s")
+        return velocity
+
+    def check_move(self, device: str, target_m: object, velocity_m_s: object) -> tuple[float, float]:
+        """The checked ``(target_m, velocity_m_s)`` of a move, or the error refusing it."""
+        return self.check_target(device, target_m), self.check_velocity(device, velocity_m_s)
 
 
 @dataclass(frozen=True)
@@ -235,19 +274,11 @@ class LoadingStage(Device):
 
     # validation ---------------------------------------------------------------------------------
     def check_move(self, target_m: float, velocity_m_s: float) -> tuple[float, float]:
-        """Validate a move without sending it (dry run); returns the checked (target, velocity)."""
-        target = finite(self.name, "target_m", target_m)
-        velocity = finite(self.name, "velocity_m_s", velocity_m_s)
-        lim = self._limits
-        if target > lim.max_position_m:
-            raise LimitError(self.name, "target_m", target, lim.max_position_m, "m")
-        if target < lim.min_position_m:
-            raise LimitError(self.name, "target_m", target, lim.min_position_m, "m")
-        if velocity <= 0:
-            raise InvalidValueError(self.name, "velocity_m_s", velocity_m_s, "must be > 0")
-        if velocity > lim.max_velocity_m_s:
-            raise LimitError(self.name, "velocity_m_s", velocity, lim.max_velocity_m_s, "m/s")
-        return target, velocity
+        """Validate a move without sending it; returns the checked (target, velocity).
+
+        The limits part is :meth:`StageLimits.check_move`, the same check the dry run makes.
+        """
+        return self._limits.check_move(self.name, target_m, velocity_m_s)
 
     def _check_ready(self) -> None:
         status = self._do_status()

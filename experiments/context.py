@@ -11,25 +11,27 @@ import threading
 import time
 from dataclasses import dataclass
 
-from drivers.interfaces import LoadingStage
+from drivers.interfaces import LoadingStage, StageLimits
 from drivers.safety import ForceGuard
 from experiments.errors import ProcedureError, ProtocolAborted
 from rigctl.acquisition import Acquisition, RigDevices
 
-
-@dataclass(frozen=True)
-class AxisLimits:
-    min_position_m: float
-    max_position_m: float
-    max_velocity_m_s: float
+TANGENTIAL = "tangential"
+"""Device name of the tangential stage (as the drivers name it in their errors)."""
+NORMAL = "normal"
+"""Device name of the normal stage."""
 
 
 @dataclass(frozen=True)
 class RigLimits:
-    """The limits a plan is checked against before anything moves."""
+    """The limits a plan is checked against before anything moves.
 
-    tangential: AxisLimits
-    normal: AxisLimits
+    Each axis's limits are the :class:`~drivers.interfaces.StageLimits` its driver checks every move
+    against; the dry run calls the same checks (:func:`experiments.steps.within_limits`).
+    """
+
+    tangential: StageLimits
+    normal: StageLimits
     max_force_N: float
 
 

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import math
 
-from experiments.context import RigLimits, RunContext
+from drivers.errors import InvalidValueError
+from experiments.context import NORMAL, RigLimits, RunContext
 from experiments.errors import ProcedureError
-from experiments.steps import PlanState, Step, check_velocity, drive_to, hold_device_time
+from experiments.steps import PlanState, Step, drive_to, hold_device_time, within_limits
 
 CONTACT_N = 2.0
 """A reading above this means the specimens touch (100 force counts of 0.02 N)."""
@@ -75,8 +76,13 @@ class LoadNormal(Step):
             )
         if not 0 < self.tolerance_N < self.target_N:
             raise self.refuse(f"tolerance {self.tolerance_N:g} N must be in (0, target)")
-        for v, what in ((self.approach_velocity_m_s, "approach"), (self.load_velocity_m_s, "load")):
-            check_velocity(self, limits.normal, v, f"normal {what}")
+        normal = limits.normal
+        within_limits(
+            self, lambda: normal.check_velocity(NORMAL, self.approach_velocity_m_s, "approach_velocity_m_s")
+        )
+        within_limits(
+            self, lambda: normal.check_velocity(NORMAL, self.load_velocity_m_s, "load_velocity_m_s")
+        )
         state.fn_N = self.target_N
         # a contact search from up to 0.5 mm away, plus ~10 secant moves per force level
         search_s = 25 * (self.coarse_step_m / self.approach_velocity_m_s + self.settle_s
@@ -101,12 +107,12 @@ class LoadNormal(Step):
 
     def _move(self, ctx: RunContext, z: float, velocity: float) -> float:
         stage = ctx.normal
-        lim = ctx.limits.normal
-        if not lim.min_position_m <= z <= lim.max_position_m:
+        try:
+            ctx.limits.normal.check_target(stage.name, z)
+        except InvalidValueError as exc:
             raise ProcedureError(
-                f"{self.describe()}: the normal stage would leave its stroke "
-                f"(target {z:.6f} m, stroke [{lim.min_position_m:g}, {lim.max_position_m:g}] m)"
-            )
+                f"{self.describe()}: the normal stage would leave its stroke: {exc}"
+            ) from exc
         drive_to(ctx, stage, z, velocity, abs(z - stage.position_m()) / velocity)
         return self._measure(ctx)
 
@@ -162,7 +168,7 @@ class ReleaseNormal(Step):
         return "release the normal load"
 
     def plan(self, state: PlanState, limits: RigLimits) -> float:
-        check_velocity(self, limits.normal, self.velocity_m_s, "normal release")
+        within_limits(self, lambda: limits.normal.check_velocity(NORMAL, self.velocity_m_s))
         state.fn_N = 0.0
         return 0.5e-3 / self.velocity_m_s + 0.5
 

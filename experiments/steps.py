@@ -8,11 +8,13 @@ device faults, pause and abort at least every 10 ms of host time.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
-from drivers.errors import StageAlarm
+from drivers.errors import InvalidValueError, StageAlarm
 from drivers.interfaces import LoadingStage
-from experiments.context import AxisLimits, RigLimits, RunContext
+from experiments.context import TANGENTIAL, RigLimits, RunContext
 from experiments.errors import PlanError, ProcedureError
 
 POSITION_TOLERANCE_M = 1e-6
@@ -52,13 +54,16 @@ class Step:
         return PlanError(f"step '{self.describe()}': {message}")
 
 
-def check_velocity(step: Step, axis: AxisLimits, velocity_m_s: float, what: str) -> None:
-    if not velocity_m_s > 0:
-        raise step.refuse(f"{what} velocity must be > 0, got {velocity_m_s:g} m/s")
-    if velocity_m_s > axis.max_velocity_m_s:
-        raise step.refuse(
-            f"{what} velocity {velocity_m_s:g} m/s exceeds the limit {axis.max_velocity_m_s:g} m/s"
-        )
+T = TypeVar("T")
+
+
+def within_limits(step: Step, check: Callable[[], T]) -> T:
+    """Run one of the drivers' own limit checks (:class:`~drivers.interfaces.StageLimits`) for the
+    dry run: its refusal becomes a :class:`PlanError` naming the step, with the driver's message."""
+    try:
+        return check()
+    except InvalidValueError as exc:
+        raise step.refuse(str(exc)) from exc
 
 
 def drive_to(
@@ -140,14 +145,8 @@ class MoveTangential(Step):
         return (f"slide {self.distance_m * 1e6:.1f} um at {self.velocity_m_s * 1e6:.3g} um/s")
 
     def plan(self, state: PlanState, limits: RigLimits) -> float:
-        axis = limits.tangential
-        check_velocity(self, axis, self.velocity_m_s, "tangential")
         target = state.x_m + self.distance_m
-        if not axis.min_position_m <= target <= axis.max_position_m:
-            raise self.refuse(
-                f"tangential target {target:.6f} m is outside the stroke "
-                f"[{axis.min_position_m:g}, {axis.max_position_m:g}] m"
-            )
+        within_limits(self, lambda: limits.tangential.check_move(TANGENTIAL, target, self.velocity_m_s))
         state.x_m = target
         return abs(self.distance_m) / self.velocity_m_s
 
@@ -169,7 +168,9 @@ class ReturnTangential(Step):
         return f"return the tangential stage to the start at {self.velocity_m_s * 1e6:.3g} um/s"
 
     def plan(self, state: PlanState, limits: RigLimits) -> float:
-        check_velocity(self, limits.tangential, self.velocity_m_s, "return")
+        within_limits(
+            self, lambda: limits.tangential.check_move(TANGENTIAL, state.x_start_m, self.velocity_m_s)
+        )
         duration = abs(state.x_m - state.x_start_m) / self.velocity_m_s
         state.x_m = state.x_start_m
         return duration

@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from experiments.context import AxisLimits, RigLimits
+from experiments.context import RigLimits
 from rigctl.acquisition import RigDevices
 from rigctl.config import RigConfig
 from rigctl.model import ModelSpec
@@ -160,13 +160,9 @@ class OpenRig:
 
 
 def rig_limits(config: RigConfig) -> RigLimits:
-    t = config.tangential_stage.limits
+    """The limits the dry run checks a plan against: the same objects the stage drivers get."""
     n = config.normal_stage.limits
-    return RigLimits(
-        tangential=AxisLimits(t.min_position_m, t.max_position_m, t.max_velocity_m_s),
-        normal=AxisLimits(n.min_position_m, n.max_position_m, n.max_velocity_m_s),
-        max_force_N=n.max_force_N,
-    )
+    return RigLimits(tangential=config.tangential_stage.limits, normal=n, max_force_N=n.max_force_N)
 
 
 def parse_speed(text: str) -> float:

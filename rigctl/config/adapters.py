@@ -13,7 +13,6 @@ import dataclasses
 from typing import TYPE_CHECKING, Literal
 
 from drivers.can_daq import CanDaqConfig
-from drivers.interfaces import StageLimits
 from drivers.modbus_stage import StageConfig
 from drivers.opencv_camera import CameraConfig
 from drivers.serial_probe import ProbeConfig
@@ -31,14 +30,9 @@ ProbeName = Literal["d1", "d2"]
 def stage_config(config: RigConfig, which: StageName) -> StageConfig:
     """The :class:`drivers.modbus_stage.StageConfig` of one stage (named like the TOML table)."""
     stage: TangentialStage | NormalStage = getattr(config, which)
-    limits = StageLimits(
-        min_position_m=stage.limits.min_position_m,
-        max_position_m=stage.limits.max_position_m,
-        max_velocity_m_s=stage.limits.max_velocity_m_s,
-    )
     return StageConfig(
         name=which.removesuffix("_stage"),
-        limits=limits,
+        limits=stage.limits,  # a StageLimits: the driver checks moves against these
         counts_per_m=stage.counts_per_m,
         transport=stage.transport,
         host=stage.host,

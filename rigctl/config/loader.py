@@ -21,6 +21,7 @@ from typing import Any, Literal, TypeVar
 
 import tomli_w
 
+from drivers.errors import SettingError
 from rigctl.config.checks import check_config
 from rigctl.config.errors import ConfigError
 from rigctl.config.fields import check_bounds, setting_of
@@ -105,6 +106,8 @@ def from_dict(cls: type[T], data: Mapping[str, Any], prefix: str = "") -> T:
                     raise ConfigError(f"{key}: {problem}, got {_show(value)}", key=key)
     try:
         return cls(**values)
+    except SettingError as exc:  # a section's own check that names its key
+        raise ConfigError(f"{prefix}{exc.key}: {exc.reason}", key=prefix + exc.key) from None
     except ValueError as exc:  # a section's own __post_init__ checks (e.g. the drivers' classes)
         where = prefix.rstrip(".") or "configuration"
         raise ConfigError(f"{where}: {exc}", key=where) from None

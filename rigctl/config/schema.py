@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from drivers.interfaces import ChannelMap
+from drivers.interfaces import ChannelMap, StageLimits
 from drivers.modbus_codec import RegisterMap, WordOrder
 from drivers.modbus_stage import (
     NORMAL_COUNTS_PER_M,
@@ -77,7 +77,9 @@ class RigSection:
 
 
 @dataclass(frozen=True)
-class TangentialLimits:
+class TangentialLimits(StageLimits):
+    """The tangential stage's :class:`~drivers.interfaces.StageLimits`, with its defaults."""
+
     min_position_m: float = setting(0.0, "Lowest target a move may have.", unit="m", ge=0.0)
     max_position_m: float = setting(
         TANGENTIAL_STROKE_M, "Highest target a move may have.", unit="m", le=TANGENTIAL_STROKE_M
@@ -91,7 +93,9 @@ class TangentialLimits:
 
 
 @dataclass(frozen=True)
-class NormalLimits:
+class NormalLimits(StageLimits):
+    """The normal stage's :class:`~drivers.interfaces.StageLimits`, with its defaults and force limit."""
+
     min_position_m: float = setting(0.0, "Lowest target a move may have.", unit="m", ge=0.0)
     max_position_m: float = setting(
         NORMAL_STROKE_M, "Highest target a move may have.", unit="m", le=NORMAL_STROKE_M
