@@ -3,7 +3,7 @@
 Every error carries the name of the device it concerns (``err.device``) so that a log line or
 a CLI message says which stage, DAQ or probe misbehaved. Errors a user can fix by changing a
 command or a configuration value (a target beyond a limit, a NaN velocity) also derive from
-:class:`ValueError`, which the CLI prints as one line with exit status 2.
+:class:`InputError` (a ``ValueError``), which the CLI prints as one line with exit status 2.
 
 Hierarchy::
 
@@ -14,7 +14,7 @@ Hierarchy::
     |   +-- UnknownCommand       code 1 ("01")
     |   +-- BadParameter         code 2 ("02")
     |   +-- DeviceBusy           code 3 ("03")
-    +-- InvalidValueError        (also ValueError) NaN, inf, wrong type, non-positive count
+    +-- InvalidValueError        (also InputError) NaN, inf, wrong type, non-positive count
     |   +-- LimitError           beyond a configured limit, refused before anything is sent
     +-- ForceLimitError          |Fn| above the force limit: the normal stage was emergency-stopped
     +-- StageAlarm               the stage controller reports an alarm (code and name)
@@ -25,7 +25,8 @@ Hierarchy::
     |                            streaming)
     +-- MotionTimeout            a stage did not finish its move within the time asked for
 
-    SettingError                 (a ValueError) a configuration value out of its bounds
+    InputError                   (a ValueError) what the user gave cannot be used: CLI exit 2
+    +-- SettingError             a configuration value out of its bounds (names its key)
 """
 
 from __future__ import annotations
@@ -110,7 +111,15 @@ def rejected(device: str, command: str, code: int) -> DeviceRejected:
     return cls(device, command, code)
 
 
-class InvalidValueError(DeviceError, ValueError):
+class InputError(ValueError):
+    """A value the user gave (a command argument, a configuration value) that cannot be used.
+
+    The base of every error the user fixes by changing what they asked for; the CLI prints it as one
+    line with exit status 2. :mod:`rigctl.errors` builds rigctl's own input errors on it.
+    """
+
+
+class InvalidValueError(DeviceError, InputError):
     """A command argument that is not a usable number (NaN, inf, wrong type, non-positive...)."""
 
     def __init__(self, device: str, quantity: str, value: object, reason: str) -> None:
@@ -132,7 +141,7 @@ class LimitError(InvalidValueError):
         super().__init__(device, quantity, value, reason)
 
 
-class SettingError(ValueError):
+class SettingError(InputError):
     """A configuration value a device or simulator cannot work with; ``key`` names it.
 
     Raised by the configuration classes' own checks; a configuration loader reports it under the

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from rigctl.errors import InputError
+
 
 class ProcedureError(RuntimeError):
     """A procedure could not go on (the runner brings the rig to a safe state)."""
 
 
-class PlanError(ValueError):
+class PlanError(InputError):
     """A protocol plan that violates a limit or has bad parameters (found by the dry run)."""
 
 

@@ -33,6 +33,7 @@ from experiments.params import resolve
 from experiments.protocols import PROTOCOLS, Protocol
 from experiments.steps import PlanState, Step
 from rigctl.acquisition import Acquisition, AcquisitionStats, RigDevices
+from rigctl.errors import InputError
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 
@@ -69,7 +70,7 @@ def get_protocol(name: str) -> Protocol:
     try:
         return PROTOCOLS[name]
     except KeyError:
-        raise ValueError(
+        raise InputError(
             f"unknown protocol '{name}' (known: {', '.join(PROTOCOLS)})"
         ) from None
 

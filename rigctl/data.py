@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from rigctl.errors import InputError
+
 FloatArray = NDArray[np.float64]
 
 REQUIRED_COLUMNS: tuple[str, ...] = ("t_s", "x_stage_m", "fn_N", "ft_N", "d1_m", "d2_m")
@@ -29,7 +31,7 @@ COLUMN_UNITS: dict[str, str] = {
 }
 
 
-class DataError(ValueError):
+class DataError(InputError):
     """Measured data that cannot be used, with the file (and where known, line and column) named."""
 
     def __init__(

@@ -18,6 +18,7 @@ from typing import Any
 from experiments.context import RigLimits
 from rigctl.acquisition import RigDevices
 from rigctl.config import RigConfig
+from rigctl.errors import UsageError
 from rigctl.model import ModelSpec
 
 MAX_SPEED = math.inf
@@ -172,9 +173,9 @@ def parse_speed(text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise ValueError(f"--speed must be a number or 'max', got {text!r}") from None
+        raise UsageError(f"--speed must be a number or 'max', got {text!r}") from None
     if not (v > 0 and v < float("inf")):
-        raise ValueError(f"--speed must be positive and finite, got {text!r}")
+        raise UsageError(f"--speed must be positive and finite, got {text!r}")
     return v
 
 
@@ -204,9 +205,9 @@ def open_rig(
             sim.close()
         return
     if backend != "real":
-        raise ValueError(f"unknown backend {backend!r} (sim, sim-wire, real)")
+        raise UsageError(f"unknown backend {backend!r} (sim, sim-wire, real)")
     if speed != 1.0:
-        raise ValueError("the real rig runs in real time only (--speed 1)")
+        raise UsageError("the real rig runs in real time only (--speed 1)")
     from drivers.can_daq import CanDaq
     from drivers.modbus_stage import ModbusStage
     from drivers.opencv_camera import OpenCvCamera

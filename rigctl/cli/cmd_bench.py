@@ -18,7 +18,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import UsageError
 
 
 @dataclass(frozen=True)

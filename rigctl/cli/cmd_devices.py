@@ -42,8 +42,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from rigctl.cli.main import UsageError
     from rigctl.config import load_effective_config
+    from rigctl.errors import UsageError
 
     config, source = load_effective_config(args.config)
     backend = args.backend or config.rig.backend

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import UsageError
 
 # numpy, h5py and the storage layer are imported inside the commands: `rigctl --help` and the other
 # commands do not pay for them.

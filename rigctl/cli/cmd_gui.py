@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import InputError, UsageError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         parse_speed(args.speed)
-    except ValueError as exc:
+    except InputError as exc:
         raise UsageError(str(exc)) from None
     config, source = load_effective_config(args.config)
     backend = args.backend or config.rig.backend

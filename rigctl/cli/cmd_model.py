@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import UsageError
 
 # numpy, scipy, the engine and matplotlib are imported inside the commands.
 

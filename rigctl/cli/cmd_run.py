@@ -13,7 +13,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import InputError, UsageError
 
 if TYPE_CHECKING:
     from rigctl.acquisition import Acquisition
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         protocol = get_protocol(args.protocol)
-    except ValueError as exc:
+    except InputError as exc:
         raise UsageError(str(exc)) from None
     if args.list_params:
         for d in protocol.params:
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         given = parse_assignments(args.param)
         speed = parse_speed(args.speed)
-    except (PlanError, ValueError) as exc:
+    except InputError as exc:
         raise UsageError(str(exc)) from None
     config, source = load_effective_config(args.config)
     backend = args.backend or config.rig.backend

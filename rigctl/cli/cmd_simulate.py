@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from rigctl.cli.main import UsageError
+from rigctl.errors import UsageError
 from rigctl.model import Drive, ModelSpec, Simulator, build_model
 from rigctl.model.drive import MAX_NORMAL_FORCE_N
 from rigctl.model.plugins import effect_registry

@@ -1,8 +1,10 @@
 """`rigctl` command line: one module per subcommand, each exposing ``register(subparsers)``.
 
 Every subcommand sets ``func(args) -> int`` on its parser. Errors the user can fix (bad arguments,
-bad files, limits) are raised as :class:`UsageError` (or ``ValueError`` subclasses such as
-``DataError``) and printed as one line with exit code 2; device failures exit 1.
+bad files, limits) are :class:`~rigctl.errors.InputError` (:class:`~rigctl.errors.UsageError`,
+``ConfigError``, ``DataError``, ``LimitError``, ...) and are printed as one line with exit code 2;
+device failures and models that cannot be run are printed as one line with exit code 1. Any other
+exception is a programming error and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -12,6 +14,10 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+
+from rigctl.errors import DeviceError, InputError, SimulationError, UsageError
+
+__all__ = ["COMMAND_MODULES", "UsageError", "build_parser", "main"]
 
 # Subcommand modules, in the order `rigctl --help` lists them. Add a line to add a command.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -24,10 +30,6 @@ COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_bench",
     "rigctl.cli.cmd_model",
 )
-
-
-class UsageError(ValueError):
-    """A problem with what the user asked for; printed as one line, exit code 2."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -66,12 +68,12 @@ def _main(argv: Sequence[str] | None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         return int(args.func(args))
-    except UsageError as exc:
+    except InputError as exc:
         print(f"rigctl: error: {exc}", file=sys.stderr)
         return 2
-    except ValueError as exc:
+    except (DeviceError, SimulationError) as exc:
         print(f"rigctl: error: {exc}", file=sys.stderr)
-        return 2
+        return 1
     except KeyboardInterrupt:
         print("rigctl: interrupted", file=sys.stderr)
         return 130

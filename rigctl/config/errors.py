@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from rigctl.errors import InputError
 
-class ConfigError(ValueError):
+
+class ConfigError(InputError):
     """An invalid configuration; the message names the file and the dotted key (``key``)."""
 
     def __init__(self, message: str, *, key: str = "") -> None:

@@ -6,6 +6,7 @@ import sys
 from collections.abc import Sequence
 
 from rigctl.config import RigConfig
+from rigctl.errors import InputError
 
 
 def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[str] = ()) -> int:
@@ -38,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return cmd_gui.run(args)
-    except ValueError as exc:  # UsageError, configuration errors
+    except InputError as exc:  # UsageError, configuration errors
         print(f"rigctl: error: {exc}", file=sys.stderr)
         return 2
 

@@ -11,9 +11,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from rigctl.errors import InputError, SimulationError
 
-class ParameterError(ValueError):
-    """A parameter name or value that the model cannot take (unknown, NaN, out of bounds)."""
+
+class ParameterError(InputError, SimulationError):
+    """A parameter name or value that the model cannot take (unknown, NaN, out of bounds).
+
+    An input error when the user gave it, a simulation error when a fit tried it.
+    """
 
 
 @dataclass(frozen=True)

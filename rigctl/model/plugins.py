@@ -16,13 +16,14 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
+from rigctl.errors import InputError
 from rigctl.model.effects import LIBRARY, Effect
 from rigctl.model.params import ParamSpec
 
 ENTRY_POINT_GROUP = "rigctl.effects"  # where installed packages register effects (docs/effects.md)
 
 
-class EffectPluginError(ValueError):
+class EffectPluginError(InputError):
     """A plug-in effect that cannot be loaded or is not a valid effect."""
 
 

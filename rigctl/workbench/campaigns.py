@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rigctl.data import MeasuredRun
+from rigctl.errors import InputError
 from rigctl.model import Drive, ModelSpec, NoiseModel, Simulator
 
 PROTOCOLS: tuple[str, ...] = (
@@ -85,7 +86,7 @@ def protocol_runs(
         return [RunPlan(f"shs_{fn_N:g}N", Drive.segments(fn_N, segs))]
     if protocol == "long_run":
         return [RunPlan(f"long_{fn_N:g}N", Drive.constant(fn_N, 2.0 * v, 120.0 * s))]
-    raise ValueError(f"unknown protocol '{protocol}' (known: {', '.join(PROTOCOLS)})")
+    raise InputError(f"unknown protocol '{protocol}' (known: {', '.join(PROTOCOLS)})")
 
 
 def simulate_campaign(

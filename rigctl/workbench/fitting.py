@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
@@ -94,7 +95,7 @@ def _scan(
         # may shift them far: aging raises every peak), as for the base model's first guess
         try:
             pt = {**raw_pt, **initial_guess(dataset, choice.with_values(raw_pt), base_free)}
-        except ValueError:
+        except SimulationError:
             continue
         if not physically_valid(choice.with_values(pt), fns):
             pt = dict(raw_pt)  # valid: checked above
@@ -133,7 +134,7 @@ def _vector_or_none(dataset: Dataset, choice: ModelChoice,
         return None
     try:
         return evaluate(dataset, choice).score.vector
-    except ValueError:
+    except SimulationError:
         return None
 
 

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
 
+from rigctl.errors import InputError
+
 T = TypeVar("T")
 R = TypeVar("R")
 
@@ -39,7 +41,7 @@ ADAPTIVE_FLOOR_S = 20.0
 CONNECT_TIMEOUT_S = 30.0
 
 
-class SchedulerError(ValueError):
+class SchedulerError(InputError):
     """The Dask scheduler cannot be reached (a usage problem: one line, exit code 2)."""
 
 

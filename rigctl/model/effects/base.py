@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from rigctl.errors import SimulationError
 from rigctl.model import layout
 from rigctl.model.params import ParamSpec
 
@@ -70,7 +71,7 @@ class CoreParams:
     def __setitem__(self, name: str, value: float) -> None:
         v = float(value)
         if not np.isfinite(v):
-            raise ValueError(f"core coefficient '{name}' set to a non-finite value {v}")
+            raise SimulationError(f"core coefficient '{name}' set to a non-finite value {v}")
         self._v[self._slot(name)] = v
 
     @staticmethod
