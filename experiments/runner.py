@@ -34,6 +34,7 @@ from experiments.protocols import PROTOCOLS, Protocol
 from experiments.steps import PlanState, Step
 from rigctl.acquisition import Acquisition, AcquisitionStats, RigDevices
 from rigctl.errors import InputError
+from rigctl.status import RunStatus
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 
@@ -130,7 +131,7 @@ def safe_state(ctx: RunContext, reason: str) -> list[str]:
 
 @dataclass
 class RunOutcome:
-    status: str
+    status: RunStatus
     error: str | None
     path: Path | None
     plan: Plan
@@ -223,7 +224,7 @@ class Runner:
         ctx = RunContext(self.devices, acq, self.limits, self.controls, guard)
         self.ctx = ctx
         t_wall = time.monotonic()
-        status, error = "completed", None
+        status, error = RunStatus.COMPLETED, None
         problems: list[str] = []
         stats: AcquisitionStats | None = None
         try:
@@ -247,13 +248,13 @@ class Runner:
                 remaining -= planned.estimate_s
             acq.mark("end", "protocol completed")
         except ProtocolAborted as exc:
-            status, error = "aborted", str(exc) or "aborted"
+            status, error = RunStatus.ABORTED, str(exc) or "aborted"
         except BaseException as exc:
-            status, error = "failed", f"{type(exc).__name__}: {exc}"
+            status, error = RunStatus.FAILED, f"{type(exc).__name__}: {exc}"
             if isinstance(exc, KeyboardInterrupt):
-                status, error = "aborted", "interrupted (Ctrl-C)"
+                status, error = RunStatus.ABORTED, "interrupted (Ctrl-C)"
         finally:
-            if status != "completed":
+            if status != RunStatus.COMPLETED:
                 t_fault = acq.t_s
                 problems = safe_state(ctx, error or status)
                 self._wait_released(ctx)

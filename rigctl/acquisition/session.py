@@ -35,6 +35,7 @@ from drivers.interfaces import Camera, Daq, DaqBlock, DisplacementProbe, Loading
 from drivers.safety import ForceGuard
 from rigctl.acquisition.clockmap import ClockMap
 from rigctl.acquisition.publisher import Publisher
+from rigctl.status import RunStatus
 from rigctl.storage import RunWriter
 
 _log = logging.getLogger(__name__)
@@ -147,7 +148,7 @@ class Acquisition:
         self._over_range: dict[str, bool] = {}
         self._in_range_run: dict[str, int] = {}
         self._threads: list[threading.Thread] = []
-        self._final_status: tuple[str, str | None] = ("completed", None)
+        self._final_status: tuple[RunStatus, str | None] = (RunStatus.COMPLETED, None)
         self._started = False
 
     # ------------------------------------------------------------------ lifecycle
@@ -166,7 +167,9 @@ class Acquisition:
             self._threads.append(th)
         return self
 
-    def stop(self, status: str = "completed", error: str | None = None) -> AcquisitionStats:
+    def stop(
+        self, status: RunStatus = RunStatus.COMPLETED, error: str | None = None
+    ) -> AcquisitionStats:
         """Stop the readers, write everything queued, close the run file with ``status``."""
         self._final_status = (status, error)
         self._stop.set()
@@ -468,7 +471,7 @@ class Acquisition:
             if w is not None and not w.closed:
                 status, error = self._final_status
                 if failure is not None:
-                    status, error = "failed", f"run file writer: {failure}"
+                    status, error = RunStatus.FAILED, f"run file writer: {failure}"
                 try:
                     w.close(status, error)
                 except Exception as exc:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rigctl.errors import UsageError
+from rigctl.status import RunStatus
 
 # numpy, h5py and the storage layer are imported inside the commands: `rigctl --help` and the other
 # commands do not pay for them.
@@ -127,7 +128,7 @@ def format_summary(s: dict[str, Any]) -> str:
 
 
 def _status_text(status: str, error: str) -> str:
-    if status == "running":
+    if status == RunStatus.RUNNING:
         return "running (still being written, or the writer stopped without closing the file)"
     return f"{status} ({error})" if error else status
 

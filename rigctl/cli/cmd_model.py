@@ -209,6 +209,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
 
 
 def _print_diagnosis(diag: Any, auto: bool) -> None:
+    from rigctl.workbench.ranking import VerdictKind
+
     r0 = diag.first
     print(f"model {r0.model.choice.label()}: baseline error {r0.model.error:.3g} "
           f"({diag.dataset.n_events} slip events)")
@@ -240,6 +242,6 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
             bar = "#" * max(1, round(30 * min(frac, 1.0)))
             print(f"  {st.index}: {st.model:46s} error {st.error:8.3g}{fall}  {bar}{note}")
             prev = st.error
-        last = diag.rounds[-1].verdict.verdict
-        print("  stopped: " + ("nothing significant left" if last == "none" else
+        last = diag.rounds[-1].verdict.kind
+        print("  stopped: " + ("nothing significant left" if last is VerdictKind.NONE else
                                "step limit reached"))

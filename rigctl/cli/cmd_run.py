@@ -14,6 +14,7 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from rigctl.errors import InputError, UsageError
+from rigctl.status import RunStatus
 
 if TYPE_CHECKING:
     from rigctl.acquisition import Acquisition
@@ -120,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
                   "recorded at the rail and marked 'probe_over_range' in the events")
     if outcome.error:
         print(f"error: {outcome.error}", file=sys.stderr)
-    return {"completed": 0, "aborted": 130}.get(outcome.status, 1)
+    return {RunStatus.COMPLETED: 0, RunStatus.ABORTED: 130}.get(outcome.status, 1)
 
 
 def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:

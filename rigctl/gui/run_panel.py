@@ -53,6 +53,7 @@ from rigctl.acquisition.publisher import Subscription
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.rigs import OpenRig, open_rig, parse_speed
+from rigctl.status import RunStatus
 from rigctl.storage.layout import RunDescription
 
 PLOT_WINDOW_S = 60.0
@@ -578,7 +579,7 @@ class RunPanel(QWidget):
                      f"{st.daq_dropped + st.queue_dropped_samples} dropped")
         if outcome.error:
             text += f"\n{outcome.error}"
-        if outcome.status == "completed":
+        if outcome.status == RunStatus.COMPLETED:
             self.progress_bar.setValue(self.progress_bar.maximum())
             self.progress_label.setText("completed")
             self._status(text, _GREEN)
@@ -586,7 +587,7 @@ class RunPanel(QWidget):
             self.progress_label.setText(f"{outcome.status}: the rig is in a safe state"
                                         if not outcome.problems else
                                         f"{outcome.status}: safe state INCOMPLETE")
-            self._status(text, _ORANGE if outcome.status == "aborted" else _RED)
+            self._status(text, _ORANGE if outcome.status == RunStatus.ABORTED else _RED)
 
     # ------------------------------------------------------------------ live data (GUI thread)
     def _reset_plot(self) -> None:

@@ -17,6 +17,8 @@ from typing import Any, Literal
 import h5py
 import numpy as np
 
+from rigctl.status import RunStatus
+
 FORMAT_NAME = "rigctl_run"
 FORMAT_VERSION = "1.0"
 LIBVER: tuple[Literal["v110"], Literal["v110"]] = ("v110", "v110")
@@ -30,11 +32,7 @@ EVENTS = "entry/events"
 PLOT = "entry/plot"
 METADATA = "entry/metadata"
 
-STATUS_RUNNING = "running"
-STATUS_COMPLETED = "completed"
-STATUS_ABORTED = "aborted"
-STATUS_FAILED = "failed"
-FINAL_STATUSES = (STATUS_COMPLETED, STATUS_ABORTED, STATUS_FAILED)
+FINAL_STATUSES = (RunStatus.COMPLETED, RunStatus.ABORTED, RunStatus.FAILED)
 
 # Fixed-length UTF-8 fields: these are written after SWMR starts, when HDF5 only allows rewriting
 # raw data of existing datasets (variable-length strings live in the global heap, which is not).

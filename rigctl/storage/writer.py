@@ -125,7 +125,7 @@ class RunWriter:
         self._last_disk_check = time.monotonic()
         self._owner: int | None = None
         self._closed = False
-        self.status: str = layout.STATUS_RUNNING
+        self.status: layout.RunStatus = layout.RunStatus.RUNNING
 
     # -- appending ---------------------------------------------------------------------------------
 
@@ -248,7 +248,9 @@ class RunWriter:
             raise StorageError(f"flush failed: {exc}", path=self.path) from exc
         self._last_flush = time.monotonic()
 
-    def close(self, status: str = layout.STATUS_COMPLETED, error: str | None = None) -> None:
+    def close(
+        self, status: layout.RunStatus = layout.RunStatus.COMPLETED, error: str | None = None
+    ) -> None:
         """Write what is pending, record the final ``status`` (and ``error`` text), close the file.
 
         Idempotent: later calls do nothing.
@@ -256,7 +258,9 @@ class RunWriter:
         if self._closed:
             return
         if status not in layout.FINAL_STATUSES:
-            raise ValueError(f"status must be one of {layout.FINAL_STATUSES}, got {status!r}")
+            raise ValueError(
+                f"status must be one of {', '.join(layout.FINAL_STATUSES)}, got {status!r}"
+            )
         try:
             self._write_pending()
         finally:
@@ -266,7 +270,7 @@ class RunWriter:
                 entry["status"][()] = layout.fit_utf8(status, layout.STATUS_BYTES)
                 entry["error"][()] = layout.fit_utf8(error or "", layout.ERROR_BYTES)
                 self._file.flush()
-                self.status = status
+                self.status = layout.RunStatus(status)
             finally:
                 self._closed = True
                 try:
@@ -285,11 +289,11 @@ class RunWriter:
         tb: TracebackType | None,
     ) -> None:
         if exc is None:
-            self.close(layout.STATUS_COMPLETED)
+            self.close(layout.RunStatus.COMPLETED)
         elif isinstance(exc, KeyboardInterrupt):
-            self.close(layout.STATUS_ABORTED, "interrupted (KeyboardInterrupt)")
+            self.close(layout.RunStatus.ABORTED, "interrupted (KeyboardInterrupt)")
         else:
-            self.close(layout.STATUS_FAILED, f"{type(exc).__name__}: {exc}")
+            self.close(layout.RunStatus.FAILED, f"{type(exc).__name__}: {exc}")
 
     # -- state -------------------------------------------------------------------------------------
 
@@ -445,7 +449,7 @@ def _create_layout(
     entry.create_dataset("start_time", data=start_time)
     entry.create_dataset("end_time", data=b"", dtype=layout.fixed_utf8(layout.END_TIME_BYTES))
     entry.create_dataset(
-        "status", data=layout.STATUS_RUNNING.encode(), dtype=layout.fixed_utf8(layout.STATUS_BYTES)
+        "status", data=layout.RunStatus.RUNNING.encode(), dtype=layout.fixed_utf8(layout.STATUS_BYTES)
     )
     entry.create_dataset("error", data=b"", dtype=layout.fixed_utf8(layout.ERROR_BYTES))
     entry.create_dataset("operator", data=description.operator)

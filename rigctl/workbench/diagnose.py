@@ -26,7 +26,14 @@ from rigctl.workbench.fitting import CandidateTask, fit_candidate, identify_mode
 from rigctl.workbench.identify import FitResult, fit, fn_range, free_params, physically_valid
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
-from rigctl.workbench.ranking import CandidateScore, Verdict, rank, score_candidate, verdict
+from rigctl.workbench.ranking import (
+    CandidateScore,
+    Verdict,
+    VerdictKind,
+    rank,
+    score_candidate,
+    verdict,
+)
 from rigctl.workbench.residual_map import (
     COVARIATE_NAMES,
     ResidualMap,
@@ -238,11 +245,11 @@ def diagnose(
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
                         progress=progress, timeout_s=timeout_s, in_process=in_process)
         diag.rounds.append(rnd)
-        if not auto or rnd.verdict.verdict == "none" or len(diag.steps) > MAX_AUTO_STEPS:
+        kind = rnd.verdict.kind
+        if not auto or kind is VerdictKind.NONE or len(diag.steps) > MAX_AUTO_STEPS:
             break
-        best = rnd.verdict.verdict if rnd.verdict.verdict != "indistinguishable" \
-            else rnd.verdict.candidates[0]
-        note = "" if rnd.verdict.verdict != "indistinguishable" else \
+        best = rnd.verdict.verdict if kind is VerdictKind.EFFECT else rnd.verdict.candidates[0]
+        note = "" if kind is VerdictKind.EFFECT else \
             f"indistinguishable from {', '.join(rnd.verdict.candidates[1:])}"
         best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
@@ -251,6 +258,6 @@ def diagnose(
                                best_score.delta_bic, note))
         pool = [c for c in pool if c != best]
         if not pool:
-            diag.rounds.append(Round(model, [], Verdict("none", [], None), {}, []))
+            diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
             break
     return diag

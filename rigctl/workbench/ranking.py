@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 from rigctl.workbench.model_choice import effect_class
 
@@ -81,11 +82,27 @@ def score_candidate(
     return CandidateScore(effect, e_cand, reduction, dbic, significant, extra_params)
 
 
+class VerdictKind(StrEnum):
+    """What a diagnosis concluded (module docstring): one effect, none, or indistinguishable."""
+
+    EFFECT = "effect"
+    NONE = "none"
+    INDISTINGUISHABLE = "indistinguishable"
+
+
 @dataclass
 class Verdict:
     verdict: str
+    """As reported (text, JSON, report): the effect's name, ``none`` or ``indistinguishable``."""
     candidates: list[str]
     suggest: str | None
+
+    @property
+    def kind(self) -> VerdictKind:
+        """The kind of verdict (:attr:`verdict` is an effect's name for :attr:`VerdictKind.EFFECT`)."""
+        if self.verdict in (VerdictKind.NONE, VerdictKind.INDISTINGUISHABLE):
+            return VerdictKind(self.verdict)
+        return VerdictKind.EFFECT
 
 
 def rank(scores: Sequence[CandidateScore]) -> list[CandidateScore]:
@@ -97,13 +114,13 @@ def verdict(ranked: Sequence[CandidateScore], effect_files: tuple[str, ...] = ()
             protocols_present: Sequence[str] = ()) -> Verdict:
     sig = [s for s in ranked if s.significant]
     if not sig:
-        return Verdict("none", [], None)
+        return Verdict(VerdictKind.NONE, [], None)
     best = sig[0]
     close = [s for s in sig[1:] if s.delta_bic - best.delta_bic < INDISTINGUISHABLE_DELTA_BIC]
     if not close:
         return Verdict(best.effect, [], None)
     names = [best.effect] + [s.effect for s in close]
-    return Verdict("indistinguishable", names, suggest_protocol(names, effect_files,
+    return Verdict(VerdictKind.INDISTINGUISHABLE, names, suggest_protocol(names, effect_files,
                                                                  protocols_present))
 
 
