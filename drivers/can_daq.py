@@ -46,9 +46,11 @@ from drivers.errors import (
     InvalidValueError,
     LimitError,
     ProtocolError,
+    SettingError,
     rejected,
 )
 from drivers.interfaces import ChannelMap, Daq, DaqBlock
+from drivers.validate import check_integer, check_number
 
 MAX_RATE_HZ = 0xFFFF
 """The set-rate command carries a uint16."""
@@ -73,28 +75,24 @@ class CanDaqConfig:
     channel_map: ChannelMap = field(default_factory=ChannelMap)
 
     def __post_init__(self) -> None:
-        def bad(key: str, why: str) -> ValueError:
-            return ValueError(f"daq {self.name!r}: {key} = {getattr(self, key)!r}: {why}")
+        owner = f"daq {self.name!r}"
+
+        def bad(key: str, why: str) -> SettingError:
+            return SettingError(owner, key, getattr(self, key), why)
 
         NodeIds(self.node_id)  # validates the node id
-        for key in (
-            "rate_hz",
-            "force_N_per_count",
-            "volts_per_count",
-            "command_timeout_s",
-            "stream_silence_s",
+        for key, unit in (
+            ("rate_hz", "Hz"),
+            ("force_N_per_count", "N/count"),
+            ("volts_per_count", "V/count"),
+            ("command_timeout_s", "s"),
+            ("stream_silence_s", "s"),
         ):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad(key, "must be a number")
-            if not (np.isfinite(value) and value > 0):
-                raise bad(key, "must be finite and > 0")
+            check_number(owner, key, getattr(self, key), unit=unit, gt=0.0)
         if self.rate_hz != int(self.rate_hz) or self.rate_hz > MAX_RATE_HZ:
             raise bad("rate_hz", f"must be a whole number of Hz up to {MAX_RATE_HZ}")
         for key, low, high in (("command_retries", 0, 3), ("rx_queue_size", 16, 1 << 22)):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise bad(key, f"must be an integer in {low}..{high}")
+            check_integer(owner, key, getattr(self, key), low, high)
         if self.bitrate is not None and (
             isinstance(self.bitrate, bool) or not isinstance(self.bitrate, int) or self.bitrate <= 0
         ):

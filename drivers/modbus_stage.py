@@ -20,7 +20,6 @@ so the stage can be used (and emergency-stopped) from several threads.
 
 from __future__ import annotations
 
-import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -31,7 +30,7 @@ from pymodbus.client.base import ModbusBaseSyncClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
 from pymodbus.pdu import ModbusPDU
 
-from drivers.errors import DeviceTimeout, InvalidValueError, ProtocolError
+from drivers.errors import DeviceTimeout, InvalidValueError, ProtocolError, SettingError
 from drivers.interfaces import LoadingStage, StageLimits, StageStatus
 from drivers.modbus_codec import (
     INT32_MAX,
@@ -45,6 +44,7 @@ from drivers.modbus_codec import (
     words_to_int32,
 )
 from drivers.safety import EmergencyStop
+from drivers.validate import check_integer, check_number
 
 TANGENTIAL_COUNTS_PER_M = 3_125_000.0
 """Tangential stage: 0.32 um per count (seed, Section 2.1; docs/protocols.md)."""
@@ -92,8 +92,10 @@ class StageConfig:
     registers: RegisterMap = field(default_factory=RegisterMap)
 
     def __post_init__(self) -> None:
-        def bad(key: str, why: str) -> ValueError:
-            return ValueError(f"stage {self.name!r}: {key} = {getattr(self, key)!r}: {why}")
+        owner = f"stage {self.name!r}"
+
+        def bad(key: str, why: str) -> SettingError:
+            return SettingError(owner, key, getattr(self, key), why)
 
         if self.transport not in ("tcp", "rtu"):
             raise bad("transport", "must be 'tcp' or 'rtu'")
@@ -103,12 +105,9 @@ class StageConfig:
             raise bad("word_order", f"must be one of {WORD_ORDERS}")
         if self.parity not in ("N", "E", "O"):
             raise bad("parity", "must be 'N', 'E' or 'O'")
-        for key in ("counts_per_m", "velocity_counts_per_m_s", "timeout_s"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad(key, "must be a number")
-            if not (math.isfinite(value) and value > 0):
-                raise bad(key, "must be finite and > 0")
+        for key, unit in (("counts_per_m", "counts/m"), ("velocity_counts_per_m_s", "counts/(m/s)"),
+                          ("timeout_s", "s")):
+            check_number(owner, key, getattr(self, key), unit=unit, gt=0.0)
         for key, low, high in (
             ("port", 0, 65535),
             ("device_id", 0, 247),
@@ -117,9 +116,7 @@ class StageConfig:
             ("stopbits", 1, 2),
             ("bytesize", 5, 8),
         ):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise bad(key, f"must be an integer in {low}..{high}")
+            check_integer(owner, key, getattr(self, key), low, high)
         if not isinstance(self.limits, StageLimits):
             raise bad("limits", "must be a StageLimits")
         if not isinstance(self.registers, RegisterMap):

@@ -16,7 +16,6 @@ for V4L2's 100 us steps), and a setting the backend refuses raises :class:`NotSu
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections import deque
@@ -26,8 +25,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.errors import DeviceError, DeviceStateError, NotSupportedError
+from drivers.errors import DeviceError, DeviceStateError, NotSupportedError, SettingError
 from drivers.interfaces import Camera, RawFrame
+from drivers.validate import check_integer, check_number
 
 
 @dataclass(frozen=True)
@@ -42,22 +42,16 @@ class CameraConfig:
     exposure_units_per_s: float | None = None
 
     def __post_init__(self) -> None:
-        def bad(key: str, why: str) -> ValueError:
-            return ValueError(f"camera {self.name!r}: {key} = {getattr(self, key)!r}: {why}")
-
+        owner = f"camera {self.name!r}"
         if isinstance(self.source, bool) or not isinstance(self.source, int | str):
-            raise bad("source", "must be a device index or a path/URL")
-        for key in ("frame_rate_hz", "playback_rate_hz", "exposure_units_per_s"):
+            raise SettingError(owner, "source", self.source, "must be a device index or a path/URL")
+        for key, unit in (("frame_rate_hz", "Hz"), ("playback_rate_hz", "Hz"),
+                          ("exposure_units_per_s", "1/s")):
             value = getattr(self, key)
             if value is None and key != "frame_rate_hz":
                 continue
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad(key, "must be a number")
-            if not (math.isfinite(value) and value > 0):
-                raise bad(key, "must be finite and > 0")
-        q = self.queue_size
-        if isinstance(q, bool) or not isinstance(q, int) or not 1 <= q <= 10_000:
-            raise bad("queue_size", "must be an integer in 1..10000")
+            check_number(owner, key, value, unit=unit, gt=0.0)
+        check_integer(owner, "queue_size", self.queue_size, 1, 10_000)
 
 
 def to_gray_u8(image: NDArray[np.integer | np.floating]) -> NDArray[np.uint8]:

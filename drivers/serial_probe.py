@@ -15,7 +15,6 @@ is ``+inf`` / ``-inf`` (flagged, never clipped). Malformed stream lines are coun
 from __future__ import annotations
 
 import contextlib
-import math
 import queue
 import threading
 import time
@@ -25,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import serial
 
-from drivers.errors import DeviceError, DeviceTimeout, InvalidValueError, ProtocolError
+from drivers.errors import DeviceError, DeviceTimeout, InvalidValueError, ProtocolError, SettingError
 from drivers.interfaces import DisplacementProbe, ProbeSamples
 from drivers.probe_lines import (
     MAX_LINE_BYTES,
@@ -38,6 +37,7 @@ from drivers.probe_lines import (
     parse_range,
     parse_stream_line,
 )
+from drivers.validate import check_integer, check_number
 
 
 @dataclass(frozen=True)
@@ -53,25 +53,17 @@ class ProbeConfig:
     stream_buffer: int = 65536
 
     def __post_init__(self) -> None:
-        def bad(key: str, why: str) -> ValueError:
-            return ValueError(f"probe {self.name!r}: {key} = {getattr(self, key)!r}: {why}")
-
+        owner = f"probe {self.name!r}"
         if not isinstance(self.url, str) or not self.url:
-            raise bad("url", "must be a pyserial URL or port name")
+            raise SettingError(owner, "url", self.url, "must be a pyserial URL or port name")
         for key in ("timeout_s", "stream_silence_s"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad(key, "must be a number")
-            if not (math.isfinite(value) and value > 0):
-                raise bad(key, "must be finite and > 0")
+            check_number(owner, key, getattr(self, key), unit="s", gt=0.0)
         for key, low, high in (
             ("baudrate", 1, 10_000_000),
             ("retries", 0, 3),
             ("stream_buffer", 16, 1 << 22),
         ):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise bad(key, f"must be an integer in {low}..{high}")
+            check_integer(owner, key, getattr(self, key), low, high)
 
 
 class SerialProbe(DisplacementProbe):

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from drivers.validate import bound_problem
 from experiments.errors import PlanError
 
 
@@ -31,14 +31,14 @@ class ParamDef:
         if not values:
             raise PlanError(f"parameter '{self.name}': no value given")
         for v in values:
-            if not math.isfinite(v):
+            if bound_problem(v):
                 raise PlanError(f"parameter '{self.name}': must be finite, got {text!r}")
         if self.is_list:
             return tuple(values)
         if len(values) != 1:
             raise PlanError(f"parameter '{self.name}' takes one value, got {text!r}")
         if isinstance(self.default, int):
-            if values[0] != int(values[0]) or values[0] < 1:
+            if bound_problem(values[0], integer=True, ge=1):
                 raise PlanError(f"parameter '{self.name}' must be a whole number >= 1")
             return int(values[0])
         return values[0]

@@ -78,7 +78,7 @@ def get_protocol(name: str) -> Protocol:
 
 def build_steps(protocol: Protocol, given: dict[str, Any]) -> tuple[dict[str, Any], list[Step]]:
     params = resolve(protocol.params, given, protocol.name)
-    return params, protocol.build(params)
+    return params, protocol.steps(params)
 
 
 def dry_run(

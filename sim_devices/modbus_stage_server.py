@@ -38,6 +38,7 @@ from drivers.modbus_codec import (
     int32_to_words,
     words_to_int32,
 )
+from drivers.validate import check_integer, check_number
 from sim_devices.faults import Faults
 from sim_devices.stage_axis import Alarm, AxisStatus
 from sim_devices.virtual_rig import StageControl
@@ -59,10 +60,11 @@ class StageWireConfig:
     registers: RegisterMap = field(default_factory=RegisterMap)
 
     def __post_init__(self) -> None:
-        if not (self.counts_per_m > 0 and self.velocity_counts_per_m_s > 0):
-            raise ValueError("register scales must be positive")
-        if not 1 <= self.device_id <= 247:
-            raise ValueError("device_id must be in 1..247")
+        owner = "stage wire"
+        check_number(owner, "counts_per_m", self.counts_per_m, unit="counts/m", gt=0.0)
+        check_number(owner, "velocity_counts_per_m_s", self.velocity_counts_per_m_s,
+                     unit="counts/(m/s)", gt=0.0)
+        check_integer(owner, "device_id", self.device_id, 1, 247)
 
 
 TANGENTIAL_WIRE = StageWireConfig(counts_per_m=3_125_000.0)

@@ -31,6 +31,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.validate import check_number
 from rigctl.model import MAX_NORMAL_FORCE_N, ModelSpec, SimResult, Simulator, build_model
 from sim_devices.clock import SimClock
 from sim_devices.contact_law import NormalContactLaw
@@ -73,16 +74,14 @@ class RigConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
-            raise ValueError("sample_rate_hz must be positive")
-        if not 0 < self.max_load_N <= MAX_NORMAL_FORCE_N:
-            raise ValueError(f"max_load_N must be in (0, {MAX_NORMAL_FORCE_N}] N")
-        if self.history_s * self.sample_rate_hz < 64:
-            raise ValueError("history_s too short")
-        if self.max_chunk_s <= 0 or self.tick_s <= 0:
-            raise ValueError("max_chunk_s and tick_s must be positive")
-        if self.accel_step_samples < 1 or self.contact_step_samples < 1:
-            raise ValueError("sub-steps must be at least one sample")
+        owner = "virtual rig"
+        check_number(owner, "sample_rate_hz", self.sample_rate_hz, unit="Hz", gt=0.0)
+        check_number(owner, "max_load_N", self.max_load_N, unit="N", gt=0.0, le=MAX_NORMAL_FORCE_N)
+        check_number(owner, "history_s", self.history_s, unit="s", ge=64 / self.sample_rate_hz)
+        check_number(owner, "max_chunk_s", self.max_chunk_s, unit="s", gt=0.0)
+        check_number(owner, "tick_s", self.tick_s, unit="s", gt=0.0)
+        check_number(owner, "accel_step_samples", self.accel_step_samples, ge=1)
+        check_number(owner, "contact_step_samples", self.contact_step_samples, ge=1)
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+from drivers.validate import bound_problem
+
 
 @dataclass(frozen=True)
 class Setting:
@@ -66,11 +68,5 @@ def setting_of(cls: type, field: dataclasses.Field[Any]) -> Setting:
 
 
 def check_bounds(info: Setting, value: float) -> str | None:
-    """The violated bound as text (e.g. ``"must be > 0"``), or None."""
-    if info.gt is not None and not value > info.gt:
-        return f"must be > {info.gt:g}"
-    if info.ge is not None and not value >= info.ge:
-        return f"must be >= {info.ge:g}"
-    if info.le is not None and not value <= info.le:
-        return f"must be <= {info.le:g}"
-    return None
+    """The violated bound as text (e.g. ``"must be > 0"``), or None (``drivers.validate.bound_problem``)."""
+    return bound_problem(value, gt=info.gt, ge=info.ge, le=info.le)

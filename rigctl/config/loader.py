@@ -101,9 +101,11 @@ def from_dict(cls: type[T], data: Mapping[str, Any], prefix: str = "") -> T:
         else:
             values[name] = _convert(key, kind, value)
             if isinstance(values[name], int | float) and not isinstance(values[name], bool):
-                problem = check_bounds(setting_of(cls, fields[name]), float(values[name]))
+                info = setting_of(cls, fields[name])
+                problem = check_bounds(info, float(values[name]))
                 if problem:
-                    raise ConfigError(f"{key}: {problem}, got {_show(value)}", key=key)
+                    unit = f" {info.unit}" if info.unit else ""
+                    raise ConfigError(f"{key}: {problem}, got {_show(value)}{unit}", key=key)
     try:
         return cls(**values)
     except SettingError as exc:  # a section's own check that names its key

@@ -11,6 +11,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from drivers.validate import bound_problem
 from rigctl.errors import InputError, SimulationError
 
 
@@ -45,12 +46,12 @@ class ParamSpec:
             raise ParameterError(f"parameter '{label}': not a number: {value!r}") from exc
         if not math.isfinite(v):
             raise ParameterError(f"parameter '{label}': must be finite, got {v}")
-        if v < self.lower or v > self.upper:
+        if bound_problem(v, ge=self.lower, le=self.upper):
             raise ParameterError(
                 f"parameter '{label}' = {v:g} {self.unit} is outside its bounds "
                 f"[{self.lower:g}, {self.upper:g}] {self.unit}"
             )
-        if self.integer and v != int(v):
+        if bound_problem(v, integer=self.integer):
             raise ParameterError(f"parameter '{label}' must be an integer, got {v:g}")
         return v
 
