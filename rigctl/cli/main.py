@@ -48,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 130 Ctrl-C."""
+    """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 130 Ctrl-C,
+    143 SIGTERM during parallel candidate fits."""
     rc = _main(argv)
     writer = sys.modules.get("rigctl.storage.writer")  # only if a run file was written
     if writer is not None and writer.BROKEN_FILES and argv is None:  # a close failed (disk full...)
@@ -74,9 +75,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except (DeviceError, SimulationError) as exc:
         print(f"rigctl: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("rigctl: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM while workers run (parallel.Terminated)
+        print(f"rigctl: {str(exc) or 'interrupted'}", file=sys.stderr)
+        return int(getattr(exc, "exit_code", 130))
 
 
 if __name__ == "__main__":

@@ -15,15 +15,33 @@
   reported as failed.
 
 Results come back in task order; ``on_done(index, result)`` is called as each finishes.
+
+No worker outlives :func:`run_tasks` (local processes):
+
+* a worker that has sent its result but does not exit within ``EXIT_GRACE_S`` (a thread it started
+  keeps it alive, a lock it inherited through ``fork`` never frees) is killed;
+* workers ignore SIGINT: Ctrl-C at a terminal goes to the whole process group, and it is the parent
+  that stops (``KeyboardInterrupt``) and kills every worker it started on its way out;
+* SIGTERM to the parent, while tasks run in its main thread with the default SIGTERM action,
+  raises :class:`Terminated` (a ``KeyboardInterrupt``) instead of ending the process on the spot,
+  so the workers are killed the same way; the CLI prints ``rigctl: terminated`` and exits 143;
+* on Linux each worker asks the kernel to SIGKILL it when its parent dies
+  (``prctl(PR_SET_PDEATHSIG)``), so even a parent killed with SIGKILL leaves no worker behind.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
 import multiprocessing
 import os
+import signal
+import sys
+import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
@@ -39,6 +57,17 @@ ADAPTIVE_FLOOR_S = 20.0
 
 
 CONNECT_TIMEOUT_S = 30.0
+EXIT_GRACE_S = 2.0  # a worker that sent its result has this long to exit before it is killed
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived while tasks ran: the workers were killed; exit code 143 (128 + 15)."""
+
+    exit_code = 128 + signal.SIGTERM
+
+    def __init__(self) -> None:
+        super().__init__("terminated (SIGTERM)")
 
 
 class SchedulerError(InputError):
@@ -88,16 +117,62 @@ def run_tasks(
     return _run_processes(fn, tasks, workers or default_workers(), on_done, timeout_s, rel)
 
 
-def _child(fn: Callable[[Any], Any], task: Any, conn: Connection) -> None:
+def _child(fn: Callable[[Any], Any], task: Any, conn: Connection, parent_pid: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's Terminated handler
+    _die_with_parent(parent_pid)
     try:
         payload: tuple[str, Any] = ("ok", fn(task))
     except BaseException as exc:  # report anything, the parent decides
         payload = ("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}")
     try:
         conn.send(payload)
+    except BrokenPipeError:  # the parent has gone: nobody to tell
+        os._exit(1)
     except Exception as exc:  # e.g. an unpicklable result
         conn.send(("error", f"cannot return the result: {exc}"))
     conn.close()
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Linux: have the kernel SIGKILL this process when its parent dies (whatever kills the parent,
+    SIGKILL included); if the parent is already gone, exit now. Elsewhere nothing is done: the
+    parent's clean-up (``finally`` and multiprocessing's exit handler for daemon processes) is all
+    there is."""
+    if not sys.platform.startswith("linux"):
+        return
+    with contextlib.suppress(OSError, AttributeError, TypeError):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+
+@contextlib.contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`Terminated` in the main thread (only where SIGTERM
+    still has its default action: a handler someone installed is left alone)."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+        yield
+        return
+
+    def raise_terminated(signum: int, frame: Any) -> None:
+        raise Terminated()
+
+    signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _reap(proc: Any) -> None:
+    """Wait briefly for a worker to exit; kill it if it does not."""
+    proc.join(timeout=EXIT_GRACE_S)
+    if proc.exitcode is None:
+        proc.kill()
+        proc.join(timeout=5)
 
 
 def _run_processes(
@@ -110,6 +185,7 @@ def _run_processes(
     results: list[Any] = [None] * len(tasks)
     todo = list(range(len(tasks)))
     running: dict[int, tuple[Any, Connection, float]] = {}
+    started: list[Any] = []  # every worker, for the clean-up whatever interrupts the loop
     finished_times: list[float] = []  # per unit of expected cost
 
     def finish(i: int, value: R | TaskFailed) -> None:
@@ -117,12 +193,15 @@ def _run_processes(
         if on_done:
             on_done(i, value)
 
-    try:
+    with _sigterm_raises(), contextlib.ExitStack() as cleanup:
+        cleanup.callback(_kill_all, started, running)
         while todo or running:
             while todo and len(running) < max(1, workers):
                 i = todo.pop(0)
                 recv, send = ctx.Pipe(duplex=False)
-                proc = ctx.Process(target=_child, args=(fn, tasks[i], send), daemon=True)
+                proc = ctx.Process(target=_child, args=(fn, tasks[i], send, os.getpid()),
+                                   daemon=True)
+                started.append(proc)
                 proc.start()
                 send.close()
                 running[i] = (proc, recv, time.monotonic())
@@ -136,7 +215,7 @@ def _run_processes(
                     except EOFError:
                         status, value = "error", f"worker died (exit code {proc.exitcode})"
                     conn.close()
-                    proc.join(timeout=5)
+                    _reap(proc)
                     del running[i]
                     finished_times.append((now - t0) / costs[i])
                     finish(i, value if status == "ok" else TaskFailed(str(value)))
@@ -151,12 +230,22 @@ def _run_processes(
                     conn.close()
                     del running[i]
                     finish(i, TaskFailed(f"stopped after {now - t0:.0f} s (time limit)"))
-    finally:
-        for proc, conn, _ in running.values():
-            proc.kill()
-            proc.join(timeout=5)
-            conn.close()
     return results
+
+
+def _kill_all(started: Sequence[Any], running: dict[int, tuple[Any, Connection, float]]) -> None:
+    """Kill every worker still alive (those started but not yet registered as running too) and
+    wait for each, so none is left behind, not even as a zombie."""
+    for proc in started:
+        if proc.pid is not None and proc.exitcode is None:
+            with contextlib.suppress(OSError, ValueError):
+                proc.kill()
+    for proc in started:
+        if proc.pid is not None:
+            with contextlib.suppress(OSError, ValueError, AssertionError):
+                proc.join(timeout=5)
+    for _, conn, _ in running.values():
+        conn.close()
 
 
 def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> Any:
@@ -178,7 +267,9 @@ def _run_dask(
 
     own = not isinstance(scheduler, Client)
     client = connect(scheduler, min(timeout_s, CONNECT_TIMEOUT_S)) if own else scheduler
-    try:
+    with _sigterm_raises(), contextlib.ExitStack() as cleanup:
+        if own:
+            cleanup.callback(client.close)
         futures: list[Future] = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         results: list[Any] = [None] * len(tasks)
@@ -196,6 +287,10 @@ def _run_dask(
                     on_done(i, value)
         except TimeoutError:
             pass
+        except BaseException:  # Ctrl-C, SIGTERM: take our tasks off the cluster
+            with contextlib.suppress(Exception):
+                client.cancel(futures)
+            raise
         for fut in futures:
             if fut.key not in done_keys:
                 fut.cancel()
@@ -204,6 +299,3 @@ def _run_dask(
                 if on_done:
                     on_done(i, results[i])
         return results
-    finally:
-        if own:
-            client.close()

@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+import signal
+import threading
 import time
 
+import psutil
 import pytest
 
 from rigctl.workbench import parallel
@@ -75,3 +80,45 @@ def test_the_adaptive_limit_scales_with_each_tasks_expected_cost(monkeypatch):
     assert isinstance(hung[3], TaskFailed) and time.monotonic() - t0 < 10.0
     with pytest.raises(ValueError, match="2 costs for 4 tasks"):
         run_tasks(sleeps, [*quick, 1.0], costs=[1.0, 1.0])
+
+
+def lingers(x: int) -> int:
+    """Returns at once but leaves a non-daemon thread behind, which keeps its process alive."""
+    threading.Thread(target=time.sleep, args=(60.0,)).start()
+    return x
+
+
+def test_a_worker_that_does_not_exit_after_its_result_is_killed():
+    me = psutil.Process()
+    before = {c.pid for c in me.children(recursive=True)}
+    t0 = time.monotonic()
+    assert run_tasks(lingers, [1, 2], workers=2) == [1, 2]
+    assert time.monotonic() - t0 < 2 * parallel.EXIT_GRACE_S + 5.0
+    left = [c for c in me.children(recursive=True) if c.pid not in before
+            and c.status() != psutil.STATUS_ZOMBIE]
+    assert left == []
+    assert multiprocessing.active_children() == []
+
+
+def test_workers_ignore_sigint_and_the_parent_kills_them_on_keyboard_interrupt():
+    """Ctrl-C reaches the workers too (one process group); they leave the decision to the parent,
+    which stops with KeyboardInterrupt and kills every worker it started."""
+    me = psutil.Process()
+    before = {c.pid for c in me.children(recursive=True)}
+    ignored: list[bool] = []
+
+    def interrupt(i: int, _res: object) -> None:
+        workers = [c for c in me.children(recursive=True) if c.pid not in before
+                   and c.status() != psutil.STATUS_ZOMBIE]
+        for c in workers:
+            os.kill(c.pid, signal.SIGINT)
+        time.sleep(0.5)
+        ignored.extend(c.is_running() and c.status() != psutil.STATUS_ZOMBIE for c in workers)
+        raise KeyboardInterrupt  # what Ctrl-C does in the parent
+
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(sleeps, [0.01, 30.0], workers=2, on_done=interrupt)
+    assert ignored == [True]  # the worker still sleeping kept on
+    left = [c for c in me.children(recursive=True) if c.pid not in before
+            and c.status() != psutil.STATUS_ZOMBIE]
+    assert left == []
