@@ -50,6 +50,8 @@ TANGENTIAL_COUNTS_PER_M = 3_125_000.0
 """Tangential stage: 0.32 um per count (seed, Section 2.1; docs/protocols.md)."""
 NORMAL_COUNTS_PER_M = 1_666_667.0
 """Normal stage: 0.6 um per count (seed, Section 2.1; docs/protocols.md)."""
+VELOCITY_COUNTS_PER_M_S = 1e9
+"""Velocity register scale of both controllers: nm/s (docs/protocols.md)."""
 
 TANGENTIAL_LIMITS = StageLimits(min_position_m=0.0, max_position_m=0.200, max_velocity_m_s=5e-3)
 """Stroke 200 mm (seed); the speed limit is a choice (the experiments use about 1.3 um/s)."""
@@ -86,7 +88,7 @@ class StageConfig:
     bytesize: int = 8
     device_id: int = 1
     word_order: WordOrder = "high_first"
-    velocity_counts_per_m_s: float = 1e9
+    velocity_counts_per_m_s: float = VELOCITY_COUNTS_PER_M_S
     timeout_s: float = 0.3
     retries: int = 1
     registers: RegisterMap = field(default_factory=RegisterMap)

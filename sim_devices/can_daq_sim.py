@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import TracebackType
 
 import can
 import numpy as np
@@ -44,6 +44,7 @@ from drivers.errors import ProtocolError
 from sim_devices.faults import Faults
 from sim_devices.sample_ring import RigSamples, SamplesLostError
 from sim_devices.sensors import ForceSensor, ForceSensorSpec, to_int16_counts
+from sim_devices.service import SimService
 from sim_devices.stream_cursor import StreamCursor, interp
 from sim_devices.virtual_rig import VirtualRig
 
@@ -102,7 +103,7 @@ class DaqSignals:
         self.sensor.tare(s.ft_N, s.fn_N)
 
 
-class CanDaqSim:
+class CanDaqSim(SimService):
     """The simulated DAQ node (module docstring). Start it, then connect a CanDaq to the channel."""
 
     def __init__(
@@ -113,6 +114,7 @@ class CanDaqSim:
         faults: Faults | None = None,
         bus: can.BusABC | None = None,
     ) -> None:
+        super().__init__("can-daq-sim")
         self.rig = rig
         self.config = cfg = config or CanDaqSimConfig()
         self.faults = faults if faults is not None else Faults(seed=cfg.seed + 3)
@@ -121,9 +123,7 @@ class CanDaqSim:
         self._bus_given = bus
         self._bus: can.BusABC | None = None
         self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._running = False
-        self._threads: list[threading.Thread] = []
+        self._wake_stream = threading.Event()
         self._rate_hz = int(cfg.rate_hz)
         self._cursor: StreamCursor | None = None
         self.frames_sent = 0
@@ -146,9 +146,7 @@ class CanDaqSim:
         return None if cursor is None else cursor.t0_s
 
     # ---------------------------------------------------------------------------- lifecycle
-    def start(self) -> CanDaqSim:
-        if self._running:
-            return self
+    def _open(self) -> None:
         cfg = self.config
         self._bus = self._bus_given or can.Bus(
             interface=cfg.interface,
@@ -156,38 +154,22 @@ class CanDaqSim:
             receive_own_messages=False,
             can_filters=[{"can_id": self.ids.command, "can_mask": 0x7FF, "extended": False}],
         )
-        self._running = True
-        for target, name in ((self._command_loop, "cmd"), (self._stream_loop, "stream")):
-            th = threading.Thread(target=target, name=f"can-daq-sim-{name}", daemon=True)
-            th.start()
-            self._threads.append(th)
-        return self
 
-    def stop(self) -> None:
-        self._running = False
-        self._wake.set()
-        for th in self._threads:
-            th.join(timeout=5.0)
-        self._threads = []
+    def _loops(self) -> list[tuple[Callable[[], None], str]]:
+        return [(self._command_loop, "cmd"), (self._stream_loop, "stream")]
+
+    def _wake(self) -> None:
+        self._wake_stream.set()
+
+    def _close(self) -> None:
         if self._bus is not None and self._bus_given is None:
             self._bus.shutdown()
         self._bus = None
 
-    def __enter__(self) -> CanDaqSim:
-        return self.start()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.stop()
-
     # ----------------------------------------------------------------------------- commands
     def _command_loop(self) -> None:
         assert self._bus is not None
-        while self._running:
+        while self.running:
             try:
                 msg = self._bus.recv(timeout=0.05)
             except can.CanError as exc:  # a broken bus ends the node; the driver times out
@@ -213,7 +195,7 @@ class CanDaqSim:
             if code == Command.START:
                 if self._cursor is None:
                     self._cursor = StreamCursor(self.rig, self._rate_hz)
-                    self._wake.set()
+                    self._wake_stream.set()
                 return pack_reply(code, Status.OK)
             if code == Command.STOP:
                 self._cursor = None
@@ -237,11 +219,11 @@ class CanDaqSim:
 
     # ---------------------------------------------------------------------------- streaming
     def _stream_loop(self) -> None:
-        while self._running:
+        while self.running:
             cursor = self._cursor
             if cursor is None or self.faults.silent:
-                self._wake.wait(0.02)
-                self._wake.clear()
+                self._wake_stream.wait(0.02)
+                self._wake_stream.clear()
                 continue
             if not cursor.wait_next(0.02):
                 continue

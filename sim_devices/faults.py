@@ -22,8 +22,11 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, field
+from typing import Generic, TypeVar
 
 import numpy as np
+
+T = TypeVar("T")
 
 
 def _check_pct(name: str, value: float) -> None:
@@ -81,3 +84,33 @@ class Faults:
         self.corrupt_pct = self.short_pct = self.drop_pct = 0.0
         self.stuck = False
         self.alarm_code = 0
+
+
+class StuckReading(Generic[T]):
+    """The ``stuck`` fault of one reading, shared by the wire and in-process simulators.
+
+    Every reading passes through :meth:`hold` (or :meth:`hold_array`): while ``faults.stuck`` is on,
+    the reading seen when it came on is returned again; once it is off, readings pass unchanged.
+    """
+
+    def __init__(self, faults: Faults) -> None:
+        self.faults = faults
+        self._held: T | None = None
+
+    def hold(self, reading: T) -> T:
+        """``reading``, or the one held since the fault came on."""
+        if not self.faults.stuck:
+            self._held = None
+            return reading
+        if self._held is None:
+            self._held = reading
+        return self._held
+
+    def hold_array(self, values: np.ndarray) -> np.ndarray:
+        """A block of readings: all equal to the held one while stuck (its first value then)."""
+        if not self.faults.stuck:
+            self._held = None
+            return values
+        if self._held is None:
+            self._held = float(values[0])  # type: ignore[assignment]
+        return np.full_like(values, self._held)

@@ -33,7 +33,7 @@ from drivers.interfaces import (
 )
 from drivers.safety import EmergencyStop
 from sim_devices.can_daq_sim import DaqSignals
-from sim_devices.faults import Faults
+from sim_devices.faults import Faults, StuckReading
 from sim_devices.sample_ring import SamplesLostError
 from sim_devices.sensors import ForceSensorSpec
 from sim_devices.stage_axis import Alarm, AxisStatus
@@ -70,7 +70,7 @@ class InProcessStage(LoadingStage):
         self.counts_per_m = float(counts_per_m)
         self.faults = faults if faults is not None else Faults()
         self.timeout_s = timeout_s
-        self._stuck: AxisStatus | None = None
+        self._stuck: StuckReading[AxisStatus] = StuckReading(self.faults)
 
     def _call(self, what: str, action: Callable[[], T]) -> T:
         f = self.faults
@@ -84,13 +84,7 @@ class InProcessStage(LoadingStage):
         return action()
 
     def _axis_status(self) -> AxisStatus:
-        st = self._call("status", self.control.status)
-        if self.faults.stuck:
-            if self._stuck is None:
-                self._stuck = st
-            return self._stuck
-        self._stuck = None
-        return st
+        return self._stuck.hold(self._call("status", self.control.status))
 
     def _counts(self, position_m: float) -> float:
         return round(position_m * self.counts_per_m) / self.counts_per_m
@@ -120,16 +114,7 @@ class InProcessStage(LoadingStage):
         return self._counts(self._axis_status().position_m)
 
     def _do_status(self) -> StageStatus:
-        st = self._axis_status()
-        return StageStatus(
-            enabled=st.enabled,
-            in_position=st.in_position,
-            homed=st.homed,
-            moving=st.moving,
-            fault=st.fault,
-            limit=st.limit,
-            alarm_code=int(st.alarm),
-        )
+        return self._axis_status().stage_status()
 
 
 class InProcessDaq(Daq):
@@ -251,7 +236,7 @@ class InProcessProbe(DisplacementProbe):
         self.faults = faults if faults is not None else Faults(seed=100 + index)
         self.timeout_s = timeout_s
         self._cursor: StreamCursor | None = None
-        self._stuck_value: float | None = None
+        self._stuck: StuckReading[float] = StuckReading(self.faults)
 
     @property
     def range_m(self) -> float:
@@ -267,12 +252,7 @@ class InProcessProbe(DisplacementProbe):
             raise DeviceTimeout(self.name, self.timeout_s, detail=what)
 
     def _stick(self, values: np.ndarray) -> np.ndarray:
-        if not self.faults.stuck:
-            self._stuck_value = None
-            return values
-        if self._stuck_value is None:
-            self._stuck_value = float(values[0])
-        return np.full_like(values, self._stuck_value)
+        return self._stuck.hold_array(values)
 
     def _do_zero(self) -> None:
         self._check_alive("ZR")

@@ -22,14 +22,14 @@ import asyncio
 import logging
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import TracebackType
+from typing import Self
 
 from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from drivers.interfaces import StageStatus
 from drivers.modbus_codec import (
     ControlBit,
     RegisterMap,
@@ -38,9 +38,11 @@ from drivers.modbus_codec import (
     int32_to_words,
     words_to_int32,
 )
+from drivers.modbus_stage import NORMAL_COUNTS_PER_M, TANGENTIAL_COUNTS_PER_M, VELOCITY_COUNTS_PER_M_S
 from drivers.validate import check_integer, check_number
-from sim_devices.faults import Faults
-from sim_devices.stage_axis import Alarm, AxisStatus
+from sim_devices.faults import Faults, StuckReading
+from sim_devices.service import SimService
+from sim_devices.stage_axis import Alarm
 from sim_devices.virtual_rig import StageControl
 
 _log = logging.getLogger(__name__)
@@ -54,7 +56,7 @@ class StageWireConfig:
     """Scales and layout of one controller's registers (docs/protocols.md defaults)."""
 
     counts_per_m: float
-    velocity_counts_per_m_s: float = 1e9
+    velocity_counts_per_m_s: float = VELOCITY_COUNTS_PER_M_S
     word_order: WordOrder = "high_first"
     device_id: int = 1
     registers: RegisterMap = field(default_factory=RegisterMap)
@@ -67,28 +69,13 @@ class StageWireConfig:
         check_integer(owner, "device_id", self.device_id, 1, 247)
 
 
-TANGENTIAL_WIRE = StageWireConfig(counts_per_m=3_125_000.0)
-"""0.32 um per count (docs/protocols.md)."""
-NORMAL_WIRE = StageWireConfig(counts_per_m=1_666_667.0)
-"""0.6 um per count (docs/protocols.md)."""
+TANGENTIAL_WIRE = StageWireConfig(counts_per_m=TANGENTIAL_COUNTS_PER_M)
+"""0.32 um per count: the driver's scale (docs/protocols.md)."""
+NORMAL_WIRE = StageWireConfig(counts_per_m=NORMAL_COUNTS_PER_M)
+"""0.6 um per count: the driver's scale (docs/protocols.md)."""
 
 
-def status_word(st: AxisStatus) -> int:
-    """The status register for an axis status."""
-    return encode_status(
-        StageStatus(
-            enabled=st.enabled,
-            in_position=st.in_position,
-            homed=st.homed,
-            moving=st.moving,
-            fault=st.fault,
-            limit=st.limit,
-            alarm_code=int(st.alarm),
-        )
-    )
-
-
-class ModbusStageServer:
+class ModbusStageServer(SimService):
     """One simulated stage controller behind a Modbus TCP server on 127.0.0.1."""
 
     def __init__(
@@ -99,6 +86,7 @@ class ModbusStageServer:
         port: int = 0,
         faults: Faults | None = None,
     ) -> None:
+        super().__init__(f"modbus-{stage.name}")
         self.stage = stage
         self.wire = wire
         self.faults = faults if faults is not None else Faults()
@@ -106,10 +94,9 @@ class ModbusStageServer:
         self._port: int | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: ModbusTcpServer | None = None
-        self._thread: threading.Thread | None = None
         self._ready = threading.Event()
         self._start_error: BaseException | None = None
-        self._stuck_regs: dict[int, int] | None = None
+        self._stuck: StuckReading[dict[int, int]] = StuckReading(self.faults)
         regs = wire.registers
         self._addr_lo = min(regs.control, regs.status, regs.target_position, regs.velocity,
                             regs.actual_position, regs.alarm_code)
@@ -125,39 +112,27 @@ class ModbusStageServer:
             raise RuntimeError("server not started")
         return self._port
 
-    def start(self, timeout_s: float = 5.0) -> ModbusStageServer:
-        if self._thread is not None:
+    def start(self, timeout_s: float = 5.0) -> Self:
+        """Serve on 127.0.0.1 (the port is known on return); a second call does nothing."""
+        if self._started:
             return self
-        self._thread = threading.Thread(
-            target=self._serve, name=f"modbus-{self.stage.name}", daemon=True
-        )
-        self._thread.start()
+        super().start()
         if not self._ready.wait(timeout_s):
             raise RuntimeError(f"Modbus server for {self.stage.name} did not start")
         if self._start_error is not None:
             raise RuntimeError(f"Modbus server for {self.stage.name} failed: {self._start_error}")
         return self
 
-    def stop(self) -> None:
-        loop, thread = self._loop, self._thread
-        if loop is None or thread is None:
-            return
-        if loop.is_running():
+    def _loops(self) -> list[tuple[Callable[[], None], str]]:
+        return [(self._serve, "serve")]
+
+    def _wake(self) -> None:
+        loop = self._loop
+        if loop is not None and loop.is_running():
             asyncio.run_coroutine_threadsafe(self._shutdown(), loop)
-        thread.join(timeout=5.0)
-        self._thread = None
+
+    def _close(self) -> None:
         self._loop = None
-
-    def __enter__(self) -> ModbusStageServer:
-        return self.start()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.stop()
 
     def _serve(self) -> None:
         loop = asyncio.new_event_loop()
@@ -205,20 +180,17 @@ class ModbusStageServer:
 
     def _live_registers(self) -> dict[int, int]:
         """The read-only registers from the rig's stage now (or frozen while ``stuck``)."""
-        if self.faults.stuck and self._stuck_regs is not None:
-            return self._stuck_regs
         st = self.stage.status()
         r, w = self.wire.registers, self.wire
         counts = round(st.position_m * w.counts_per_m)
         pos = int32_to_words(counts, w.word_order, device=self.stage.name)
         regs = {
-            r.status: status_word(st),
+            r.status: encode_status(st.stage_status()),
             r.actual_position: pos[0],
             r.actual_position + 1: pos[1],
             r.alarm_code: int(st.alarm),
         }
-        self._stuck_regs = regs if self.faults.stuck else None
-        return regs
+        return self._stuck.hold(regs)
 
     async def _action(
         self,

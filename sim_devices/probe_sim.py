@@ -27,16 +27,16 @@ import contextlib
 import logging
 import os
 import select
-import threading
 import tty
-from types import TracebackType
+from collections.abc import Callable
 
 import numpy as np
 
 from drivers.probe_lines import format_value
-from sim_devices.faults import Faults
+from sim_devices.faults import Faults, StuckReading
 from sim_devices.sample_ring import SamplesLostError
 from sim_devices.sensors import ProbeHead
+from sim_devices.service import SimService
 from sim_devices.stream_cursor import StreamCursor, interp
 from sim_devices.virtual_rig import VirtualRig
 
@@ -48,12 +48,13 @@ MAX_COMMAND_BYTES = 80
 MAX_BATCH_LINES = 256
 
 
-class ProbeSim:
+class ProbeSim(SimService):
     """One simulated probe (index 0 = D1, 1 = D2 of the rig) behind a pty (module docstring)."""
 
     def __init__(self, rig: VirtualRig, index: int, *, faults: Faults | None = None) -> None:
         if index not in (0, 1):
             raise ValueError("probe index must be 0 (D1) or 1 (D2)")
+        super().__init__(f"probe-sim-d{index + 1}")
         self.rig = rig
         self.index = index
         self.head: ProbeHead = rig.probes[index]
@@ -61,55 +62,33 @@ class ProbeSim:
         self._master = -1
         self._slave = -1
         self.path = ""
-        self._thread: threading.Thread | None = None
-        self._running = False
         self._in = bytearray()
         self._out = bytearray()
         self._cursor: StreamCursor | None = None
-        self._stuck_value: float | None = None
+        self._stuck: StuckReading[float] = StuckReading(self.faults)
         self.lines_lost = 0
         self.commands_seen = 0
 
     # ---------------------------------------------------------------------------- lifecycle
-    def start(self) -> ProbeSim:
-        if self._running:
-            return self
+    def _open(self) -> None:
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
-        self._running = True
-        self._thread = threading.Thread(
-            target=self._loop, name=f"probe-sim-d{self.index + 1}", daemon=True
-        )
-        self._thread.start()
-        return self
 
-    def stop(self) -> None:
-        self._running = False
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-            self._thread = None
+    def _loops(self) -> list[tuple[Callable[[], None], str]]:
+        return [(self._loop, "pty")]
+
+    def _close(self) -> None:
         for fd in (self._master, self._slave):
             if fd >= 0:
                 with contextlib.suppress(OSError):
                     os.close(fd)
         self._master = self._slave = -1
 
-    def __enter__(self) -> ProbeSim:
-        return self.start()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.stop()
-
     # --------------------------------------------------------------------------------- loop
     def _loop(self) -> None:
-        while self._running:
+        while self.running:
             wait_s = 0.002 if self._cursor is not None else 0.02
             writers = [self._master] if self._out else []
             try:
@@ -184,12 +163,7 @@ class ProbeSim:
         return self._apply_stuck(self.head.readings_m(np.array([self._ideal_now()])))[0]
 
     def _apply_stuck(self, values: np.ndarray) -> np.ndarray:
-        if not self.faults.stuck:
-            self._stuck_value = None
-            return values
-        if self._stuck_value is None:
-            self._stuck_value = float(values[0])
-        return np.full_like(values, self._stuck_value)
+        return self._stuck.hold_array(values)
 
     def _emit_stream(self) -> None:
         cursor = self._cursor

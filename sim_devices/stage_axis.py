@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass
 from enum import IntEnum
 
+from drivers.interfaces import StageStatus
+
 
 class Alarm(IntEnum):
     """Alarm codes of the register map (docs/protocols.md, register 8)."""
@@ -125,6 +127,18 @@ class AxisStatus:
     fault: bool
     limit: bool
     alarm: Alarm
+
+    def stage_status(self) -> StageStatus:
+        """What the controller reports through the drivers' interface (the status bits and alarm)."""
+        return StageStatus(
+            enabled=self.enabled,
+            in_position=self.in_position,
+            homed=self.homed,
+            moving=self.moving,
+            fault=self.fault,
+            limit=self.limit,
+            alarm_code=int(self.alarm),
+        )
 
 
 def _trapezoid(

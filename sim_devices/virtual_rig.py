@@ -25,8 +25,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import TracebackType
-from typing import TypeVar
+from typing import Self, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +36,7 @@ from sim_devices.clock import SimClock
 from sim_devices.contact_law import NormalContactLaw
 from sim_devices.sample_ring import RigSamples, SampleRing
 from sim_devices.sensors import ProbeHead, ProbeSpec
+from sim_devices.service import SimService
 from sim_devices.stage_axis import (
     NORMAL_STAGE,
     TANGENTIAL_STAGE,
@@ -152,7 +152,7 @@ class StageControl:
         return st.tangential if self.axis is self._rig._tan else st.normal
 
 
-class VirtualRig:
+class VirtualRig(SimService):
     """The one simulated rig (module docstring). Use as a context manager or call :meth:`close`."""
 
     def __init__(
@@ -162,6 +162,7 @@ class VirtualRig:
         speed: float | None = None,
         config: RigConfig | None = None,
     ) -> None:
+        super().__init__("virtual-rig")
         self.config = cfg = config or RigConfig()
         self.model = model if model is not None else build_model()
         self.clock = SimClock(speed)
@@ -189,8 +190,6 @@ class VirtualRig:
         z_start = self._nor.position_m(0.0)
         self._store(first, 0.0, 1.0 / cfg.sample_rate_hz, z_start, z_start)
         self._state = self._snapshot()
-        self._runner: threading.Thread | None = None
-        self._stop = threading.Event()
         self.error: BaseException | None = None
         self._closed = False
 
@@ -219,34 +218,21 @@ class VirtualRig:
         return int(self.p_tables.shape[1])
 
     # ---------------------------------------------------------------------------- lifecycle
-    def start(self) -> VirtualRig:
+    def start(self) -> Self:
         """Start the clock thread (real-time or accelerated); a no-op in manual mode."""
-        if self.clock.manual or self._runner is not None:
+        if self.clock.manual or self._closed:
             return self
-        self._runner = threading.Thread(target=self._run, name="virtual-rig-clock", daemon=True)
-        self._runner.start()
-        return self
+        return super().start()
+
+    def _loops(self) -> list[tuple[Callable[[], None], str]]:
+        return [(self._run, "clock")]
 
     def close(self) -> None:
-        """Stop the clock thread; wakes every waiter."""
+        """Stop the clock thread for good; wakes every waiter."""
         self._closed = True
-        self._stop.set()
-        if self._runner is not None:
-            self._runner.join(timeout=5.0)
-            self._runner = None
+        self.stop()
         with self._cond:
             self._cond.notify_all()
-
-    def __enter__(self) -> VirtualRig:
-        return self.start()
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def check(self) -> None:
         """Raise :class:`RigFailedError` if the engine has failed."""
@@ -254,7 +240,7 @@ class VirtualRig:
             raise RigFailedError(f"virtual rig stopped: {self.error}") from self.error
 
     def _run(self) -> None:
-        while not self._stop.is_set():
+        while self.running:
             try:
                 self.advance_to(self.clock.now_s())
             except Exception as exc:  # keep the reason; waiters see it through check()
@@ -263,7 +249,7 @@ class VirtualRig:
                 with self._cond:
                     self._cond.notify_all()
                 return
-            self._stop.wait(self.config.tick_s)
+            self._stop_event.wait(self.config.tick_s)
 
     # ------------------------------------------------------------------------------ advance
     def advance_to(self, t_s: float) -> None:

@@ -23,6 +23,7 @@ from drivers.modbus_stage import (
     NORMAL_LIMITS,
     TANGENTIAL_COUNTS_PER_M,
     TANGENTIAL_LIMITS,
+    VELOCITY_COUNTS_PER_M_S,
 )
 from drivers.safety import DEFAULT_FORCE_LIMIT_N
 from rigctl.config.fields import Setting, describe, section, setting
@@ -135,7 +136,9 @@ class StageLink:
     device_id: int = setting(1, "Modbus device (unit) id.", ge=0, le=247)
     word_order: WordOrder = setting("high_first", "Register order of 32-bit values.")
     counts_per_m: float = setting(TANGENTIAL_COUNTS_PER_M, "Position scale.", unit="counts/m", gt=0.0)
-    velocity_counts_per_m_s: float = setting(1e9, "Velocity scale (1e9: nm/s).", unit="counts/(m/s)", gt=0.0)
+    velocity_counts_per_m_s: float = setting(
+        VELOCITY_COUNTS_PER_M_S, "Velocity scale (1e9: nm/s).", unit="counts/(m/s)", gt=0.0
+    )
     timeout_s: float = setting(0.3, "Reply timeout per attempt.", unit="s", gt=0.0, le=10.0)
     retries: int = setting(1, "Retries after a timeout before the device is declared dead.", ge=0, le=3)
     registers: RegisterMap = section(RegisterMap, "Register map.")
