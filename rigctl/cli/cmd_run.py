@@ -1,4 +1,8 @@
-"""`rigctl run PROTOCOL`: run an experiment protocol headless and record it to a run file."""
+"""`rigctl run PROTOCOL`: run an experiment protocol headless and record it to a run file.
+
+PROTOCOL is a built-in protocol's name or the path of a protocol file (``experiments.protocol_file``;
+also ``--protocol-file F.py``).
+"""
 
 from __future__ import annotations
 
@@ -11,12 +15,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rigctl.errors import InputError, UsageError
 from rigctl.status import RunStatus
 
 if TYPE_CHECKING:
+    from experiments.protocol_file import ProtocolFile
+    from experiments.protocols import Protocol
     from rigctl.acquisition import Acquisition
     from rigctl.rigs import Pacer
 
@@ -26,10 +32,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser(
         "run", help="run an experiment protocol (nlre, tlre, force_sweep, velocity_steps, "
-        "slide_hold_slide)",
-        description="Protocols: " + "; ".join(f"{k}: {v.summary}" for k, v in PROTOCOLS.items()),
+        "slide_hold_slide, or a protocol file F.py)",
+        description="Protocols: " + "; ".join(f"{k}: {v.summary}" for k, v in PROTOCOLS.items())
+        + ". A protocol file (a Python file defining a Protocol) is given by its path: "
+        "rigctl run path/to/my_protocol.py, or --protocol-file F.py.",
     )
-    p.add_argument("protocol", help="protocol name")
+    p.add_argument("protocol", nargs="?", default=None,
+                   help="protocol name, or the path of a protocol file (F.py)")
+    p.add_argument("--protocol-file", default=None, metavar="F.py",
+                   help="run the Protocol defined in this Python file (loaded from this path only)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="protocol parameter (lists comma-separated); --list-params shows them")
     p.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"],
@@ -49,16 +60,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from experiments.errors import PlanError
     from experiments.params import parse_assignments
-    from experiments.runner import Runner, get_protocol, terminal_progress
+    from experiments.runner import Runner, terminal_progress
     from rigctl.config import adapters
     from rigctl.config.loader import load_effective_config, to_toml
     from rigctl.rigs import open_rig, parse_speed
     from rigctl.storage.layout import RunDescription
 
-    try:
-        protocol = get_protocol(args.protocol)
-    except InputError as exc:
-        raise UsageError(str(exc)) from None
+    protocol, origin = _protocol(args)
     if args.list_params:
         for d in protocol.params:
             print(f"{d.name:<20} default {d.default!s:<40} [{d.unit}]  {d.doc}")
@@ -84,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
             protocol=protocol.name,
             operator=args.operator if args.operator is not None else config.rig.operator,
             notes=args.notes, config_toml=to_toml(rig.config),
-            metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name},
+            metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name,
+                      **(origin.metadata() if origin is not None else {})},
         )
         runner = Runner(
             protocol, given, rig.devices, rig.limits, out=out,
@@ -122,6 +131,28 @@ def run(args: argparse.Namespace) -> int:
     if outcome.error:
         print(f"error: {outcome.error}", file=sys.stderr)
     return {RunStatus.COMPLETED: 0, RunStatus.ABORTED: 130}.get(outcome.status, 1)
+
+
+def _protocol(args: argparse.Namespace) -> tuple[Protocol[Any], ProtocolFile | None]:
+    """The protocol to run: a built-in one by name, or the one a protocol file defines."""
+    from experiments.protocol_file import load_protocol_file, looks_like_a_file
+    from experiments.runner import get_protocol
+
+    if args.protocol_file is not None and args.protocol is not None:
+        raise UsageError(f"give either a protocol ({args.protocol}) or --protocol-file, not both")
+    path = args.protocol_file
+    if path is None:
+        if args.protocol is None:
+            raise UsageError("which protocol? give its name (e.g. tlre) or a protocol file F.py")
+        if looks_like_a_file(args.protocol):
+            path = args.protocol
+    try:
+        if path is not None:
+            loaded = load_protocol_file(path)
+            return loaded.protocol, loaded
+        return get_protocol(args.protocol), None
+    except InputError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
