@@ -29,6 +29,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "rigctl.cli.cmd_gui",
     "rigctl.cli.cmd_bench",
     "rigctl.cli.cmd_model",
+    "rigctl.cli.cmd_analyse",
 )
 
 

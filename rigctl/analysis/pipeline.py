@@ -1,0 +1,113 @@
+"""Analyse runs as the paper does: one run file or CSV, or a folder (a campaign).
+
+:func:`analyse_run` opens a run (:mod:`rigctl.analysis.source`), runs the mechanical analyses
+(:mod:`rigctl.analysis.mechanics`). :func:`analyse_campaign` does that for every run of a folder and adds
+the force-sweep summary (:mod:`rigctl.analysis.sweep`); a single force-sweep file gets it too.
+Everything a run lacks is said in its notes; a file that cannot be read at all is a note of the
+campaign (the other runs are still analysed), and a DataError for a single run.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigctl.analysis.mechanics import Mechanics, analyse_mechanics
+from rigctl.analysis.progress import SILENT, Progress
+from rigctl.analysis.source import RunSource, open_source
+from rigctl.analysis.sweep import SweepSummary, summarise, sweep_point
+from rigctl.data import DataError
+from rigctl.io.load import expand_paths
+
+
+@dataclass
+class RunAnalysis:
+    source: RunSource
+    mechanics: Mechanics
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return self.source.name
+
+    def im1(self, pass_index: int) -> float:
+        """Im(1) of a pass, NaN without frames."""
+        return math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        s = self.source
+        run = s.run
+        return {
+            "file": str(s.path),
+            "kind": s.kind,
+            "protocol": s.protocol,
+            "parameters": s.parameters,
+            "status": s.status,
+            "samples": run.n_samples,
+            "duration_s": run.duration_s,
+            "sample_rate_hz": run.sample_rate_hz,
+            "frames": None if s.frames is None else {
+                "n": s.frames.n_frames, "height_px": s.frames.height_px,
+                "width_px": s.frames.width_px, "frame_rate_hz": s.frames.frame_rate_hz,
+                "measured_rate_hz": s.frames.measured_rate_hz,
+            },
+            "notes": list(self.notes),
+            "passes": self.mechanics.pass_dicts(),
+            "repeatability": [r.to_dict() for r in self.mechanics.repeatability],
+        }
+
+
+def analyse_run(path: str | Path, progress: Progress = SILENT) -> RunAnalysis:
+    """All analyses of one run (DataError if the file cannot be read at all)."""
+    src = open_source(path)
+    mech = analyse_mechanics(src.run)
+    notes = list(src.notes) + list(mech.notes)
+    return RunAnalysis(src, mech, notes)
+
+
+@dataclass
+class CampaignAnalysis:
+    runs: list[RunAnalysis]
+    sweep: SweepSummary | None
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "runs": [r.to_dict() for r in self.runs],
+            "sweep": None if self.sweep is None else self.sweep.to_dict(),
+            "notes": list(self.notes),
+        }
+
+
+def _sweep(runs: Sequence[RunAnalysis]) -> SweepSummary | None:
+    points = []
+    for ra in runs:
+        m = ra.mechanics
+        for rec, fc, st in zip(m.passes, m.friction, m.stiffness, strict=True):
+            points.append(sweep_point(ra.name, rec, fc, st, ra.im1(rec.pas.index)))
+    fns = np.round([p.fn_N for p in points]) if points else np.zeros(0)
+    if np.unique(fns).size < 2:
+        return None
+    return summarise(points)
+
+
+def analyse_campaign(paths: Sequence[str | Path], progress: Progress = SILENT) -> CampaignAnalysis:
+    """Every run the paths name (a folder: its *.csv and *.h5), and the sweep across them."""
+    files = expand_paths(list(paths))
+    runs: list[RunAnalysis] = []
+    notes: list[str] = []
+    with progress.bar(len(files), "runs", "run") as bar:
+        for f in files:
+            try:
+                runs.append(analyse_run(f, progress))
+            except DataError as exc:
+                if len(files) == 1:
+                    raise
+                notes.append(f"not analysed: {exc}")
+            bar.update()
+    return CampaignAnalysis(runs, _sweep(runs), notes)
