@@ -10,7 +10,17 @@ from rigctl.errors import InputError
 
 
 def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[str] = ()) -> int:
-    """Show the run panel until the window is closed; a run still going is aborted (safe state)."""
+    """Show the run panel until the window is closed; a run still going is aborted (safe state).
+
+    Refuses to start (one line on stderr, exit 1) if the Qt binding fails the reference-count self-check
+    (:mod:`rigctl.gui.selfcheck`): such a window would abort mid-run.
+    """
+    from rigctl.gui import selfcheck
+
+    check = selfcheck.check_binding()
+    if check.leaking:
+        print(f"rigctl gui: error: {check.message()}", file=sys.stderr)
+        return 1
     from PySide6.QtWidgets import QApplication
 
     from rigctl.gui.run_panel import RunPanel

@@ -20,8 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import pyqtgraph as pg
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QColor, QFont
 from PySide6.QtWidgets import (
@@ -52,6 +50,7 @@ from rigctl.acquisition import Acquisition
 from rigctl.acquisition.publisher import Subscription
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
+from rigctl.gui.live_plot import LivePlot
 from rigctl.rigs import OpenRig, open_rig, parse_speed
 from rigctl.status import RunStatus
 from rigctl.storage.layout import RunDescription
@@ -59,8 +58,9 @@ from rigctl.storage.layout import RunDescription
 PLOT_WINDOW_S = 60.0
 """Rig time shown by the live plot."""
 SUBSCRIPTION_BLOCKS = 512
-"""Bound of the live-data mailbox (DAQ blocks); the GUI drains it every ``DRAIN_INTERVAL_MS``."""
-DRAIN_INTERVAL_MS = 100
+"""Bound of the live-data mailbox (DAQ blocks); the GUI drains it and redraws every ``DRAIN_INTERVAL_MS``
+(about 30 frames per second)."""
+DRAIN_INTERVAL_MS = 33
 ABORT_REASON = "aborted by the operator"
 
 _RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
@@ -125,7 +125,6 @@ class RunPanel(QWidget):
         self.last_rig: OpenRig | None = rig
         """The rig of the latest action (closed again unless it was given)."""
         self.last_outcome: RunOutcome | None = None
-        self.samples_received = 0
         self._thread: threading.Thread | None = None
         self._controls: Controls | None = None
         self._close_when_done = False
@@ -133,10 +132,8 @@ class RunPanel(QWidget):
         self._plan: Plan | None = None
         self._progress: tuple[int, int, str, float, float, float] | None = None
         self._t_latest = math.nan
-        self._t_origin = math.nan
         self._wall_start = 0.0
         self._speed = 1.0
-        self._buf: dict[str, np.ndarray] = {}
         self._sig = _WorkerSignals(self)
         self._sig.planned.connect(self._on_planned)
         self._sig.subscribed.connect(self._on_subscribed)
@@ -237,16 +234,11 @@ class RunPanel(QWidget):
         self.plan_view.setFont(mono)
         self.plan_view.setPlaceholderText("Dry run: the plan (steps and rig time) appears here")
 
-        self.plot = pg.PlotWidget(background="w")
-        self.plot.setLabel("bottom", "rig time", units="s")
-        self.plot.setLabel("left", "force", units="N")
-        self.plot.showGrid(x=True, y=True, alpha=0.3)
-        self.plot.addLegend(offset=(10, 10))
-        self.plot.setDownsampling(auto=True, mode="peak")
-        self.plot.setClipToView(True)
-        self.ft_curve = self.plot.plot(name="Ft", pen=pg.mkPen("#1565c0", width=1.5))
-        self.fn_curve = self.plot.plot(name="Fn", pen=pg.mkPen(_RED, width=1.5))
-        self.plot.setMinimumHeight(220)
+        self.live = LivePlot(rate_hz=self.config.daq.sample_rate_hz, window_s=PLOT_WINDOW_S,
+                             phase_plot=False)
+        self.live.setMinimumHeight(260)
+        self.ft_curve = self.live.ft_curve
+        self.fn_curve = self.live.fn_curve
 
         left = QVBoxLayout()
         left.addLayout(form)
@@ -256,7 +248,7 @@ class RunPanel(QWidget):
         left.addWidget(self.progress_label)
         left.addWidget(self.status_label)
         right = QVBoxLayout()
-        right.addWidget(self.plot, 3)
+        right.addWidget(self.live, 3)
         right.addWidget(self.plan_view, 2)
         top = QHBoxLayout(self)
         top.addLayout(left, 1)
@@ -591,12 +583,13 @@ class RunPanel(QWidget):
 
     # ------------------------------------------------------------------ live data (GUI thread)
     def _reset_plot(self) -> None:
-        self._buf = {k: np.empty(0) for k in ("t_s", "ft_N", "fn_N")}
+        self.live.clear()
+        self.live.force_plot.setTitle(None)
         self._t_latest = math.nan
-        self._t_origin = math.nan
-        self.samples_received = 0
-        self.ft_curve.setData([], [])
-        self.fn_curve.setData([], [])
+
+    @property
+    def samples_received(self) -> int:
+        return self.live.samples
 
     def _tick(self) -> None:
         sub = self._sub
@@ -604,23 +597,12 @@ class RunPanel(QWidget):
             return
         blocks = sub.drain()
         if blocks:
-            new = {k: np.concatenate([b[k] for b in blocks]) for k in self._buf}
-            self.samples_received += int(new["t_s"].shape[0])
-            if math.isnan(self._t_origin):
-                self._t_origin = float(new["t_s"][0])
-            self._t_latest = float(new["t_s"][-1])
-            keep_from = self._t_latest - PLOT_WINDOW_S
-            for k in self._buf:
-                self._buf[k] = np.concatenate([self._buf[k], new[k]])
-            first = int(np.searchsorted(self._buf["t_s"], keep_from))
-            if first:
-                self._buf = {k: v[first:] for k, v in self._buf.items()}
-            x = self._buf["t_s"] - self._t_origin
-            self.ft_curve.setData(x, self._buf["ft_N"])
-            self.fn_curve.setData(x, self._buf["fn_N"])
+            self.live.feed(blocks)
+            self._t_latest = float(blocks[-1]["t_s"][-1])
+            self.live.redraw()
             if sub.dropped:
-                self.plot.setTitle(f"live view skipped {sub.dropped} blocks (display only)",
-                                   color=_ORANGE, size="8pt")
+                self.live.force_plot.setTitle(
+                    f"live view skipped {sub.dropped} blocks (display only)", color=_ORANGE, size="8pt")
         self._show_progress()
 
     def _show_progress(self) -> None:
