@@ -71,13 +71,15 @@ def test_the_adaptive_limit_scales_with_each_tasks_expected_cost(monkeypatch):
     slower than the quick ones, while one that overruns its own share still is."""
     monkeypatch.setattr(parallel, "ADAPTIVE_FLOOR_S", 0.5)
     quick = [0.05, 0.05, 0.05]
-    blind = run_tasks(sleeps, [*quick, 1.5], workers=4)
+    # The slow task sleeps 5 s so that the limit (6 x the slowest quick task, whose measured time
+    # includes the worker's start) stays below it even when a loaded machine starts workers slowly.
+    blind = run_tasks(sleeps, [*quick, 5.0], workers=4)
     assert isinstance(blind[3], TaskFailed) and "time limit" in blind[3].message
-    aware = run_tasks(sleeps, [*quick, 1.5], workers=4, costs=[1.0, 1.0, 1.0, 40.0])
-    assert aware[3] == 1.5
+    aware = run_tasks(sleeps, [*quick, 5.0], workers=4, costs=[1.0, 1.0, 1.0, 40.0])
+    assert aware[3] == 5.0
     t0 = time.monotonic()
-    hung = run_tasks(sleeps, [*quick, 30.0], workers=4, costs=[1.0, 1.0, 1.0, 2.0])
-    assert isinstance(hung[3], TaskFailed) and time.monotonic() - t0 < 10.0
+    hung = run_tasks(sleeps, [*quick, 60.0], workers=4, costs=[1.0, 1.0, 1.0, 2.0])
+    assert isinstance(hung[3], TaskFailed) and time.monotonic() - t0 < 20.0
     with pytest.raises(ValueError, match="2 costs for 4 tasks"):
         run_tasks(sleeps, [*quick, 1.0], costs=[1.0, 1.0])
 
