@@ -82,7 +82,7 @@ def run_case(name: str, minutes: float, folder: Path, progress: Callable[[str], 
     if name != "rig-1x":
         config = dataclasses.replace(
             config, storage=dataclasses.replace(config.storage, frame_compression="none"))
-    sim = build_sim_rig(backend, config=config, speed=speed)
+    sim = build_sim_rig(backend, settings=adapters.sim_settings(config), speed=speed)
     try:
         _load_and_slide(sim, speed)
         if name != "rig-1x":

@@ -194,7 +194,10 @@ def open_rig(
         fps = cam_cfg.frame_rate_hz / factor if factor > 1 else cam_cfg.frame_rate_hz
         cfg = dataclasses.replace(config, camera=dataclasses.replace(cam_cfg, frame_rate_hz=fps))
         paced = speed > 1.0  # an accelerated rig must not outrun its recorder (Pacer)
-        sim = build_sim_rig(backend, config=cfg, speed=None if paced else speed, model=model)
+        from rigctl.config.adapters import sim_settings
+
+        sim = build_sim_rig(backend, settings=sim_settings(cfg), speed=None if paced else speed,
+                            model=model)
         pacer = Pacer(sim.rig, speed=speed).start() if paced else None
         try:
             yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(cfg), cfg, speed, sim,

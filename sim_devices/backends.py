@@ -10,6 +10,10 @@ Both give a :class:`DeviceSet` with the same six devices and the same names as t
 in-process :class:`SimCamera` in both (OpenCV has no pluggable backend). Everything a backend
 started is stopped by :meth:`SimRig.close` (or leaving :func:`open_sim_rig`), drivers first.
 
+What a rig configuration says about the simulated rig reaches this module as :class:`SimSettings`
+(made by :func:`rigctl.config.adapters.sim_settings`): the simulators depend on the drivers and the
+model only, never on rigctl's configuration.
+
 Each simulated device has its own :class:`~sim_devices.faults.Faults` in :attr:`SimRig.faults`,
 keyed by the device names. The stages register with :attr:`SimRig.emergency_stop`, a fresh
 :class:`EmergencyStop` per simulated rig unless one is given (a simulated rig must not latch the
@@ -24,10 +28,10 @@ import logging
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 from drivers.can_daq import CanDaq, CanDaqConfig
-from drivers.interfaces import Camera, Daq, Device, DisplacementProbe, LoadingStage
+from drivers.interfaces import Camera, ChannelMap, Daq, Device, DisplacementProbe, LoadingStage
 from drivers.modbus_stage import (
     NORMAL_COUNTS_PER_M,
     NORMAL_LIMITS,
@@ -49,9 +53,6 @@ from sim_devices.probe_sim import ProbeSim
 from sim_devices.sensors import ForceSensorSpec
 from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
 from sim_devices.virtual_rig import StageControl, VirtualRig
-
-if TYPE_CHECKING:
-    from rigctl.config import RigConfig
 
 _log = logging.getLogger(__name__)
 
@@ -113,24 +114,38 @@ class SimRig:
         self.rig.close()
 
 
-def _model_from(config: RigConfig | None) -> ModelSpec:
-    if config is None:
-        return build_model()
-    return build_model(base=config.sim.model, effects=list(config.sim.effects))
+def _default_stage(name: str) -> StageConfig:
+    counts, limits = ((TANGENTIAL_COUNTS_PER_M, TANGENTIAL_LIMITS) if name == "tangential"
+                      else (NORMAL_COUNTS_PER_M, NORMAL_LIMITS))
+    return StageConfig(name=name, limits=limits, counts_per_m=counts)
 
 
-def _rig_config_from(config: RigConfig | None) -> VirtualRigConfig:
-    if config is None:
-        return VirtualRigConfig()
-    from rigctl.config.adapters import virtual_rig_config
+@dataclass(frozen=True)
+class SimSettings:
+    """Everything a simulated rig takes from a rig configuration; the defaults are the devices' own.
 
-    return virtual_rig_config(config)
+    :func:`rigctl.config.adapters.sim_settings` makes one from a :class:`rigctl.config.RigConfig`.
+    """
+
+    model: ModelSpec | None = None
+    """The friction model (None: :func:`rigctl.model.build_model`'s default)."""
+    rig: VirtualRigConfig = field(default_factory=VirtualRigConfig)
+    tangential_stage: StageConfig = field(default_factory=lambda: _default_stage("tangential"))
+    normal_stage: StageConfig = field(default_factory=lambda: _default_stage("normal"))
+    daq: CanDaqConfig | None = None
+    """The DAQ driver's settings (None: the driver's defaults, sampling at the rig's rate)."""
+    sensor: ForceSensorSpec = field(default_factory=ForceSensorSpec)
+    channel_map: ChannelMap | None = None
+    probes: tuple[ProbeConfig, ProbeConfig] | None = None
+    """The probe drivers' settings (their ``url`` is replaced by the simulated probe's pty)."""
+    camera_optics: CameraOptics | None = None
+    camera_frame_rate_hz: float = 60.0
 
 
 def build_sim_rig(
     backend: str = "sim",
     *,
-    config: RigConfig | None = None,
+    settings: SimSettings | None = None,
     model: ModelSpec | None = None,
     speed: float | None = 1.0,
     rig_config: VirtualRigConfig | None = None,
@@ -140,26 +155,20 @@ def build_sim_rig(
 ) -> SimRig:
     """Start a simulated rig with ``backend`` (``sim`` or ``sim-wire``); the caller closes it.
 
-    ``config`` (a :class:`rigctl.config.RigConfig`) supplies the model, seed, sample rate, probe
-    specs, camera size and the drivers' settings; the explicit arguments override it. ``speed`` is the
+    ``settings`` (:class:`SimSettings`, e.g. ``rigctl.config.adapters.sim_settings(config)``) supplies
+    the model, seed, sample rate, probe specs, camera size and the drivers' settings; the explicit
+    arguments override it. ``speed`` is the
     clock's factor (1 real time, >1 accelerated, None manual: advance with ``rig.advance_to``).
     ``can_channel`` defaults to a unique ``virtual`` channel, so parallel rigs never hear each other.
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown simulated backend {backend!r}; one of {', '.join(BACKENDS)}")
-    rig = VirtualRig(
-        model if model is not None else _model_from(config),
-        speed=speed,
-        config=rig_config if rig_config is not None else _rig_config_from(config),
-    )
+    cfg = settings if settings is not None else SimSettings()
+    if model is None:
+        model = cfg.model if cfg.model is not None else build_model()
+    rig = VirtualRig(model, speed=speed, config=rig_config if rig_config is not None else cfg.rig)
     estop = emergency_stop if emergency_stop is not None else EmergencyStop()
-    optics = camera_optics
-    if optics is None and config is not None:
-        optics = CameraOptics(
-            width_px=config.camera.width_px,
-            height_px=config.camera.height_px,
-            seed=config.sim.seed + 2022,
-        )
+    optics = camera_optics if camera_optics is not None else cfg.camera_optics
     faults = {name: Faults(seed=rig.config.seed + 10 * i) for i, name in enumerate(DEVICE_NAMES)}
     closers: list[Callable[[], None]] = []
     try:
@@ -167,14 +176,14 @@ def build_sim_rig(
             rig,
             "camera",
             optics=optics,
-            frame_rate_hz=config.camera.frame_rate_hz if config is not None else 60.0,
+            frame_rate_hz=cfg.camera_frame_rate_hz,
             faults=faults["camera"],
         )
         if backend == "sim":
-            devices = _in_process(rig, config, faults, estop, camera)
+            devices = _in_process(rig, cfg, faults, estop, camera)
             sim = SimRig("sim", rig, devices, faults, estop)
         else:
-            devices, servers = _wire(rig, config, faults, estop, camera, can_channel, closers)
+            devices, servers = _wire(rig, cfg, faults, estop, camera, can_channel, closers)
             sim = SimRig("sim-wire", rig, devices, faults, estop, servers, closers)
     except BaseException:
         for closer in reversed(closers):
@@ -196,38 +205,24 @@ def open_sim_rig(backend: str = "sim", **kwargs: object) -> Iterator[SimRig]:
         sim.close()
 
 
-def _stage_configs(config: RigConfig | None) -> tuple[StageConfig, StageConfig]:
-    if config is not None:
-        from rigctl.config.adapters import stage_config
-
-        return stage_config(config, "tangential_stage"), stage_config(config, "normal_stage")
-    return (
-        StageConfig(name="tangential", limits=TANGENTIAL_LIMITS,
-                    counts_per_m=TANGENTIAL_COUNTS_PER_M),
-        StageConfig(name="normal", limits=NORMAL_LIMITS, counts_per_m=NORMAL_COUNTS_PER_M),
-    )
-
-
 def _in_process(
     rig: VirtualRig,
-    config: RigConfig | None,
+    settings: SimSettings,
     faults: dict[str, Faults],
     estop: EmergencyStop,
     camera: SimCamera,
 ) -> DeviceSet:
-    tan_cfg, nor_cfg = _stage_configs(config)
-    rate = float(config.daq.sample_rate_hz) if config is not None else rig.rate_hz
-    sensor = _sensor_spec(config)
+    rate = settings.daq.rate_hz if settings.daq is not None else rig.rate_hz
 
     def stage(control: StageControl, cfg: StageConfig, key: str) -> InProcessStage:
         return InProcessStage(control, cfg.counts_per_m, name=cfg.name, limits=cfg.limits,
                               emergency_stop=estop, faults=faults[key], timeout_s=cfg.timeout_s)
 
     return DeviceSet(
-        tangential_stage=stage(rig.tangential, tan_cfg, "tangential_stage"),
-        normal_stage=stage(rig.normal, nor_cfg, "normal_stage"),
-        daq=InProcessDaq(rig, "daq", rate_hz=rate, sensor=sensor,
-                         channel_map=config.channels if config is not None else None,
+        tangential_stage=stage(rig.tangential, settings.tangential_stage, "tangential_stage"),
+        normal_stage=stage(rig.normal, settings.normal_stage, "normal_stage"),
+        daq=InProcessDaq(rig, "daq", rate_hz=rate, sensor=settings.sensor,
+                         channel_map=settings.channel_map,
                          faults=faults["daq"], seed=rig.config.seed),
         d1=InProcessProbe(rig, 0, "d1", faults=faults["d1"]),
         d2=InProcessProbe(rig, 1, "d2", faults=faults["d2"]),
@@ -235,20 +230,9 @@ def _in_process(
     )
 
 
-def _sensor_spec(config: RigConfig | None) -> ForceSensorSpec:
-    if config is None:
-        return ForceSensorSpec()
-    return dataclasses.replace(
-        ForceSensorSpec(),
-        force_N_per_count=config.daq.force_N_per_count,
-        volts_per_count=config.daq.volts_per_count,
-        probe_m_per_volt=config.channels.d1_m_per_V,
-    )
-
-
 def _wire(
     rig: VirtualRig,
-    config: RigConfig | None,
+    settings: SimSettings,
     faults: dict[str, Faults],
     estop: EmergencyStop,
     camera: SimCamera,
@@ -258,7 +242,8 @@ def _wire(
     servers: list[object] = []
     stages: list[ModbusStage] = []
     for control, cfg, key in zip(
-        (rig.tangential, rig.normal), _stage_configs(config), ("tangential_stage", "normal_stage"),
+        (rig.tangential, rig.normal), (settings.tangential_stage, settings.normal_stage),
+        ("tangential_stage", "normal_stage"),
         strict=True,
     ):
         wire = StageWireConfig(
@@ -276,17 +261,13 @@ def _wire(
         closers.append(stage.close)
         stages.append(stage)
 
-    daq_cfg = CanDaqConfig()
-    if config is not None:
-        from rigctl.config.adapters import daq_config
-
-        daq_cfg = daq_config(config)
+    daq_cfg = settings.daq if settings.daq is not None else CanDaqConfig()
     channel = can_channel or f"rigctl-sim-{uuid.uuid4().hex[:12]}"
     daq_cfg = dataclasses.replace(daq_cfg, interface="virtual", channel=channel, bitrate=None)
     node = CanDaqSim(
         rig,
         CanDaqSimConfig(interface="virtual", channel=channel, node_id=daq_cfg.node_id,
-                        rate_hz=int(daq_cfg.rate_hz), sensor=_sensor_spec(config),
+                        rate_hz=int(daq_cfg.rate_hz), sensor=settings.sensor,
                         seed=rig.config.seed),
         faults=faults["daq"],
     ).start()
@@ -300,10 +281,8 @@ def _wire(
         psim = ProbeSim(rig, index, faults=faults[key]).start()
         closers.append(psim.stop)
         servers.append(psim)
-        if config is not None:
-            from rigctl.config.adapters import probe_config
-
-            pcfg = probe_config(config, key, url=psim.path)  # type: ignore[arg-type]
+        if settings.probes is not None:
+            pcfg = dataclasses.replace(settings.probes[index], url=psim.path)
         else:
             pcfg = ProbeConfig(name=key, url=psim.path)
         probe = SerialProbe(pcfg)

@@ -72,9 +72,10 @@ def _devices(
     backend: str, config: RigConfig, from_file: bool, failed: list[str]
 ) -> Iterator[list[tuple[str, Device]]]:
     if backend in ("sim", "sim-wire"):
+        from rigctl.config.adapters import sim_settings
         from sim_devices.backends import build_sim_rig
 
-        sim = build_sim_rig(backend, config=config if from_file else None, speed=1.0)
+        sim = build_sim_rig(backend, settings=sim_settings(config) if from_file else None, speed=1.0)
         try:
             yield sim.devices.items()
         finally:

@@ -15,6 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 
+from rigctl import teardown
 from rigctl.errors import DeviceError, InputError, SimulationError, UsageError
 
 __all__ = ["COMMAND_MODULES", "UsageError", "build_parser", "main"]
@@ -52,8 +53,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 130 Ctrl-C,
     143 SIGTERM during parallel candidate fits."""
     rc = _main(argv)
-    writer = sys.modules.get("rigctl.storage.writer")  # only if a run file was written
-    if writer is not None and writer.BROKEN_FILES and argv is None:  # a close failed (disk full...)
+    if teardown.unsafe_to_free() and argv is None:  # a run file's close failed (disk full...)
         # The HDF5 library may crash while freeing such a file at interpreter exit, turning exit
         # code 1 into a segfault. What could be written is on disk and the error was reported:
         # leave without the library's teardown (h5py issue 914, HDF5 close-after-failed-write).

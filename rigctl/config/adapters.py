@@ -20,7 +20,8 @@ from rigctl.config.errors import ConfigError
 from rigctl.config.schema import NormalStage, RigConfig, TangentialStage
 from rigctl.storage.layout import CameraLayout, DaqLayout
 
-if TYPE_CHECKING:  # the simulator pulls in the physics engine: imported only when asked for
+if TYPE_CHECKING:  # the simulators pull in the physics engine: imported only when asked for
+    from sim_devices.backends import SimSettings
     from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
 
 StageName = Literal["tangential_stage", "normal_stage"]
@@ -141,6 +142,39 @@ def virtual_rig_config(config: RigConfig) -> VirtualRigConfig:
     )
 
 
+def sim_settings(config: RigConfig) -> SimSettings:
+    """What the simulated rig (:func:`sim_devices.backends.build_sim_rig`) takes from ``config``:
+    the model, the virtual rig, the drivers' settings, the sensor scales, the camera."""
+    from rigctl.model import build_model
+    from sim_devices.backends import SimSettings
+    from sim_devices.contact_image import CameraOptics
+    from sim_devices.sensors import ForceSensorSpec
+
+    sensor = dataclasses.replace(
+        ForceSensorSpec(),
+        force_N_per_count=config.daq.force_N_per_count,
+        volts_per_count=config.daq.volts_per_count,
+        probe_m_per_volt=config.channels.d1_m_per_V,
+    )
+    placeholder = "loop://"  # replaced by the simulated probe's pty
+    return SimSettings(
+        model=build_model(base=config.sim.model, effects=list(config.sim.effects)),
+        rig=virtual_rig_config(config),
+        tangential_stage=stage_config(config, "tangential_stage"),
+        normal_stage=stage_config(config, "normal_stage"),
+        daq=daq_config(config),
+        sensor=sensor,
+        channel_map=config.channels,
+        probes=(probe_config(config, "d1", url=placeholder), probe_config(config, "d2", url=placeholder)),
+        camera_optics=CameraOptics(
+            width_px=config.camera.width_px,
+            height_px=config.camera.height_px,
+            seed=config.sim.seed + 2022,
+        ),
+        camera_frame_rate_hz=config.camera.frame_rate_hz,
+    )
+
+
 __all__ = [
     "ProbeName",
     "StageName",
@@ -150,6 +184,7 @@ __all__ = [
     "daq_layout",
     "force_limit_N",
     "probe_config",
+    "sim_settings",
     "stage_config",
     "virtual_rig_config",
 ]

@@ -1,12 +1,21 @@
-"""`rigctl gui`: the operator's window (the run panel) on a rig backend."""
+"""`rigctl gui`: the operator's window (the run panel) on a rig backend.
+
+The GUI's command-line options live here (:func:`add_arguments`, :func:`run_from_args`), so that
+``python -m rigctl.gui.app`` and ``rigctl gui`` (:mod:`rigctl.cli.cmd_gui`, which imports them) take
+the same options without the GUI importing the command line.
+"""
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-from rigctl.config import RigConfig
-from rigctl.errors import InputError
+from rigctl.errors import InputError, UsageError
+
+if TYPE_CHECKING:
+    from rigctl.config import RigConfig
 
 
 def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[str] = ()) -> int:
@@ -38,17 +47,37 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
     return rc
 
 
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The GUI's options: ``--backend``, ``--config``, ``--speed``."""
+    p.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"],
+                   help="devices (default: the configuration's rig.backend)")
+    p.add_argument("--config", default=None, help="rig configuration (TOML)")
+    p.add_argument("--speed", default="1", help="initial simulated rig clock: 1, N or max")
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Check the options, load the configuration, show the window; bad options raise UsageError."""
+    from rigctl.config.loader import load_effective_config
+    from rigctl.rigs import parse_speed
+
+    try:
+        parse_speed(args.speed)
+    except InputError as exc:
+        raise UsageError(str(exc)) from None
+    config, source = load_effective_config(args.config)
+    backend = args.backend or config.rig.backend
+    if backend == "real" and source is None:
+        raise UsageError("the real backend needs a rig configuration: --config rig.toml")
+    return run_gui(config, backend, args.speed)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m rigctl.gui.app [--backend B] [--config rig.toml] [--speed S]`` (as ``rigctl gui``)."""
-    import argparse
-
-    from rigctl.cli import cmd_gui
-
     parser = argparse.ArgumentParser(prog="rigctl gui", description="the operator's run panel")
-    cmd_gui.add_arguments(parser)
+    add_arguments(parser)
     args = parser.parse_args(argv)
     try:
-        return cmd_gui.run(args)
+        return run_from_args(args)
     except InputError as exc:  # UsageError, configuration errors
         print(f"rigctl: error: {exc}", file=sys.stderr)
         return 2

@@ -14,8 +14,8 @@ While recording, the free space of the file system is checked every ``DISK_CHECK
 it falls below half of ``min_free_bytes`` the writer raises :class:`StorageError` ("disk nearly full")
 while there is still room to close the file cleanly with its status. A write that fails anyway
 (a full disk, an I/O error) leaves the HDF5 library holding a half-closed file; such files are kept
-in :data:`BROKEN_FILES` (never garbage-collected: HDF5 may crash on them), and the command line
-leaves the process without the library's teardown (see :func:`rigctl.cli.main.main`).
+alive by :func:`rigctl.teardown.keep_alive` (never garbage-collected: HDF5 may crash on them), and
+the command line leaves the process without the library's teardown (see :func:`rigctl.cli.main.main`).
 
 Used as a context manager, the run's final status is recorded whatever happens: ``completed`` on a
 clean exit, ``aborted`` on ``KeyboardInterrupt``, ``failed`` with the exception text otherwise; the
@@ -41,6 +41,7 @@ from rigctl.data import DataError, FloatArray
 from rigctl.storage import layout
 from rigctl.storage.errors import StorageError
 from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES, check_output_path, estimate_run_bytes
+from rigctl.teardown import keep_alive
 
 DEFAULT_FLUSH_INTERVAL_S = 0.25
 MAX_FLUSH_INTERVAL_S = 0.5
@@ -51,8 +52,6 @@ _COALESCE_SAMPLES = 1024
 DISK_CHECK_INTERVAL_S = 2.0
 """How often (host seconds) the free space is checked while recording."""
 
-BROKEN_FILES: list[object] = []
-"""h5py files whose close failed (kept alive on purpose: freeing them can crash HDF5)."""
 
 
 class RunWriter:
@@ -276,7 +275,7 @@ class RunWriter:
                 try:
                     self._file.close()
                 except BaseException:
-                    BROKEN_FILES.append(self._file)  # freeing it later can crash the HDF5 library
+                    keep_alive(self._file)  # freeing it later can crash the HDF5 library
                     raise
 
     def __enter__(self) -> RunWriter:

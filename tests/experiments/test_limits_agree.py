@@ -15,6 +15,7 @@ import pytest
 from drivers.errors import InvalidValueError
 from experiments.errors import PlanError
 from experiments.steps import MoveTangential, PlanState, ReturnTangential
+from rigctl.config.adapters import sim_settings
 from rigctl.config.loader import default_config
 from rigctl.rigs import rig_limits
 from sim_devices.backends import open_sim_rig
@@ -51,7 +52,7 @@ def dry_run_refusal(start_m: float, distance_m: float, velocity_m_s: float) -> s
 
 
 def test_dry_run_and_driver_refuse_the_same_moves_with_the_same_message() -> None:
-    with open_sim_rig("sim", config=CONFIG, speed=None) as sim:
+    with open_sim_rig("sim", settings=sim_settings(CONFIG), speed=None) as sim:
         stage = sim.devices.tangential_stage
         assert stage.limits == LIMITS.tangential
         stage.enable()
