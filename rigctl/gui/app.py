@@ -18,9 +18,12 @@ if TYPE_CHECKING:
     from rigctl.config import RigConfig
 
 
-def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[str] = ()) -> int:
+def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[str] = (),
+            config_path: str | None = None, in_process: bool = False) -> int:
     """Show the run panel until the window is closed; a run still going is aborted (safe state).
 
+    Runs go to the run service (:mod:`rigctl.runservice`, started if none is listening), so a run
+    outlives the window; ``in_process`` runs them in a worker thread of this process instead.
     Refuses to start (one line on stderr, exit 1) if the Qt binding fails the reference-count self-check
     (:mod:`rigctl.gui.selfcheck`): such a window would abort mid-run.
     """
@@ -36,7 +39,15 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
 
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *argv])
-    panel = RunPanel(config, backend, speed=speed)
+    from rigctl.runservice.client import ServiceStartError
+    from rigctl.runservice.wire import default_address
+
+    try:
+        panel = RunPanel(config, backend, speed=speed, config_path=config_path,
+                         service=None if in_process else default_address())
+    except ServiceStartError as exc:
+        print(f"rigctl gui: error: {exc}", file=sys.stderr)
+        return 1
     panel.show()
     try:
         rc = app.exec()
@@ -44,15 +55,19 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
         if not panel.shutdown(timeout_s=60.0):  # e.g. the event loop ended by a signal
             print("rigctl gui: the run did not reach a safe state within 60 s", file=sys.stderr)
             rc = 1
+        panel.disconnect_service()
     return rc
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The GUI's options: ``--backend``, ``--config``, ``--speed``."""
+    """The GUI's options: ``--backend``, ``--config``, ``--speed``, ``--in-process``."""
     p.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"],
                    help="devices (default: the configuration's rig.backend)")
     p.add_argument("--config", default=None, help="rig configuration (TOML)")
-    p.add_argument("--speed", default="1", help="initial simulated rig clock: 1, N or max")
+    p.add_argument("--speed", default="1", help="simulated rig clock: 1, N or max")
+    p.add_argument("--in-process", action="store_true",
+                   help="run protocols in this process (a crash of the window then aborts the run) "
+                   "instead of the run service")
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -68,7 +83,8 @@ def run_from_args(args: argparse.Namespace) -> int:
     backend = args.backend or config.rig.backend
     if backend == "real" and source is None:
         raise UsageError("the real backend needs a rig configuration: --config rig.toml")
-    return run_gui(config, backend, args.speed)
+    return run_gui(config, backend, args.speed, config_path=args.config,
+                   in_process=args.in_process)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

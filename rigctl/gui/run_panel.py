@@ -15,6 +15,7 @@ import contextlib
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +24,7 @@ from typing import Any
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QColor, QFont
 from PySide6.QtWidgets import (
+    QApplication,
     QCheckBox,
     QComboBox,
     QFileDialog,
@@ -52,6 +54,8 @@ from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.gui.live_plot import LivePlot
 from rigctl.rigs import OpenRig, open_rig, parse_speed
+from rigctl.runservice.client import ServiceClient
+from rigctl.runservice.wire import Address, JobSpec
 from rigctl.status import RunStatus
 from rigctl.storage.layout import RunDescription
 
@@ -102,6 +106,29 @@ class _WorkerSignals(QObject):
     subscribed = Signal(object)  # Subscription to the acquisition's "daq" topic
     progress = Signal(int, int, str, float, float, float)  # i, n, step, elapsed, eta, device t
     done = Signal(object)  # _Result
+    service_log = Signal(str, str)  # level, text (run service)
+    service_lost = Signal()
+
+
+class _LiveMailbox:
+    """Live DAQ blocks from the run service, bounded like a publisher subscription (oldest dropped)."""
+
+    def __init__(self, maxlen: int) -> None:
+        self._items: deque[Any] = deque(maxlen=maxlen)
+        self._lock = threading.Lock()
+        self.dropped = 0
+
+    def put(self, item: Any) -> None:
+        with self._lock:
+            if len(self._items) == self._items.maxlen:
+                self.dropped += 1
+            self._items.append(item)
+
+    def drain(self) -> list[Any]:
+        with self._lock:
+            items = list(self._items)
+            self._items.clear()
+            return items
 
 
 class RunPanel(QWidget):
@@ -114,10 +141,14 @@ class RunPanel(QWidget):
         *,
         rig: OpenRig | None = None,
         speed: str = "1",
+        service: Address | None = None,
+        config_path: str | None = None,
         parent: QWidget | None = None,
     ) -> None:
-        """``rig``: an already open rig used for every action (tests, embedding); otherwise the
-        panel opens ``backend`` with ``config`` for each dry run or run and closes it afterwards."""
+        """``rig``: an already open rig used for every action (tests, embedding). ``service``: run in
+        the run service listening there (started if none is; ``rigctl gui`` does this), so a run
+        outlives the window. Otherwise the panel opens ``backend`` with ``config`` in a worker thread
+        for each dry run or run and closes it afterwards."""
         super().__init__(parent)
         self.config = config
         self.backend = backend
@@ -128,7 +159,7 @@ class RunPanel(QWidget):
         self._thread: threading.Thread | None = None
         self._controls: Controls | None = None
         self._close_when_done = False
-        self._sub: Subscription | None = None
+        self._sub: Subscription | _LiveMailbox | None = None
         self._plan: Plan | None = None
         self._progress: tuple[int, int, str, float, float, float] | None = None
         self._t_latest = math.nan
@@ -139,7 +170,17 @@ class RunPanel(QWidget):
         self._sig.subscribed.connect(self._on_subscribed)
         self._sig.progress.connect(self._on_progress)
         self._sig.done.connect(self._on_done)
+        self._sig.service_log.connect(self._on_service_log)
+        self._sig.service_lost.connect(self._on_service_lost)
+        self._client: ServiceClient | None = None
+        self._remote_busy = False
+        self._mailbox = _LiveMailbox(SUBSCRIPTION_BLOCKS)
+        self._live_announced = False
         self._build(speed)
+        if service is not None and rig is None:
+            self._client = ServiceClient.ensure(
+                self._on_service_message, backend=backend, speed_text=speed, config_path=config_path,
+                address=service)
         self._timer = QTimer(self)
         self._timer.setInterval(DRAIN_INTERVAL_MS)
         self._timer.timeout.connect(self._tick)
@@ -339,7 +380,38 @@ class RunPanel(QWidget):
     # ------------------------------------------------------------------ actions (GUI thread)
     @property
     def busy(self) -> bool:
+        if self._client is not None:
+            return self._remote_busy
         return self._thread is not None and self._thread.is_alive()
+
+    # ------------------------------------------------------------------ run service (reader thread)
+    def _on_service_message(self, kind: str, payload: Any) -> None:
+        """Runs in the client's reader thread: only emits signals (queued into the GUI thread)."""
+        if kind == "daq":
+            self._mailbox.put(payload)
+            if not self._live_announced:
+                self._live_announced = True
+                self._sig.subscribed.emit(self._mailbox)
+        elif kind == "planned":
+            self._sig.planned.emit(payload)
+        elif kind == "progress":
+            self._sig.progress.emit(*payload)
+        elif kind == "done":
+            self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome))
+        elif kind == "log":
+            self._sig.service_log.emit(*payload)
+        elif kind == "lost":
+            self._sig.service_lost.emit()
+
+    def _on_service_log(self, level: str, text: str) -> None:
+        if level in ("warning", "error"):
+            self._status(f"run service: {text}", _RED if level == "error" else _ORANGE)
+
+    def _on_service_lost(self) -> None:
+        self._remote_busy = False
+        self._timer.stop()
+        self._set_state("idle")
+        self._status("the run service went away; restart the window to reconnect", _RED)
 
     def _launch(self, dry: bool) -> None:
         if self.busy:
@@ -385,6 +457,16 @@ class RunPanel(QWidget):
         self._status("dry run: checking the plan against the limits…" if dry
                      else f"starting {self.protocol.name}…", None)
         self._set_state("busy" if dry else "running")
+        if self._client is not None:
+            self._live_announced = False
+            self._mailbox.drain()
+            spec = JobSpec(self.protocol.name, dict(given), None if out is None else str(out),
+                           overwrite=overwrite, camera=self.camera_check.isChecked(), dry=dry,
+                           speed_text=speed_text)
+            self._remote_busy = self._client.send("start", spec)
+            if not self._remote_busy:
+                self._on_service_lost()
+            return
         self._thread = threading.Thread(target=self._work, args=(job,), name="rigctl-gui-run",
                                         daemon=False)
         self._thread.start()
@@ -392,6 +474,8 @@ class RunPanel(QWidget):
     def pause(self) -> None:
         if self._controls is not None and self.busy:
             self._controls.pause()
+            if self._client is not None:
+                self._client.send("pause")
             self._set_state("paused")
             self._status("paused: the stages hold where they are (rig time and recording go on)",
                          _ORANGE)
@@ -399,6 +483,8 @@ class RunPanel(QWidget):
     def resume(self) -> None:
         if self._controls is not None and self.busy:
             self._controls.resume()
+            if self._client is not None:
+                self._client.send("resume")
             self._set_state("running")
             self._status("running", None)
 
@@ -406,6 +492,8 @@ class RunPanel(QWidget):
         if self._controls is not None and self.busy:
             self._controls.abort(reason)
             self._controls.resume()
+            if self._client is not None:
+                self._client.send("abort", reason)
             self._set_state("aborting")
             self._status("aborting: stopping and releasing the normal load…", _ORANGE)
 
@@ -414,7 +502,16 @@ class RunPanel(QWidget):
         self.abort()
         if self._thread is not None:
             self._thread.join(timeout_s)
+        deadline = time.monotonic() + timeout_s
+        while self._client is not None and self._remote_busy and time.monotonic() < deadline:
+            QApplication.processEvents()  # the outcome arrives as a queued signal
+            time.sleep(0.02)
         return not self.busy
+
+    def disconnect_service(self) -> None:
+        """Close the connection to the run service (it stops by itself once idle with no client)."""
+        if self._client is not None:
+            self._client.close()
 
     def _ask(self, question: str) -> bool:
         answer = QMessageBox.question(self, "rigctl", question,
@@ -527,7 +624,7 @@ class RunPanel(QWidget):
             text += f"\nwall time at speed {self._speed:g}: ~{plan.duration_s / self._speed:.0f} s"
         self.plan_view.setPlainText(text)
 
-    def _on_subscribed(self, sub: Subscription) -> None:
+    def _on_subscribed(self, sub: Subscription | _LiveMailbox) -> None:
         self._sub = sub
         self._wall_start = time.monotonic()
         self._timer.start()
@@ -540,6 +637,7 @@ class RunPanel(QWidget):
         self._show_progress()
 
     def _on_done(self, result: _Result) -> None:
+        self._remote_busy = False
         self._tick()
         self._timer.stop()
         self._sub = None

@@ -1,0 +1,448 @@
+"""The run service: owns the open rig and runs protocols in its own process; GUIs are clients.
+
+A protocol run must outlive its window: if the GUI crashes or is killed mid-run, the run goes on in
+this process, the rig ends in the state the protocol (or its safe state) leaves it, and the run file is
+closed with its status, exactly as with ``rigctl run``. The service is started by ``rigctl gui`` in a
+new session (so a signal to the GUI's process group does not reach it), or by hand:
+``python -m rigctl.runservice --backend sim --speed 10``.
+
+* One rig, opened at start (``rigctl.rigs.open_rig``) and closed at exit.
+* One run at a time, in a worker thread, built exactly as ``rigctl run`` builds it (same Runner,
+  layouts, force limit, description with ``started_from`` in the metadata).
+* Clients (any number) connect over a Unix socket (:mod:`rigctl.runservice.wire`). Each has a sender
+  thread with its own bounded queue: a slow or frozen client loses its own live data (counted), never
+  delays the run or other clients; control messages (plan, progress, outcome) are never dropped.
+* A client that disappears mid-run changes nothing, unless ``--orphan abort``: then the run is aborted
+  (safe state: tangential stage stopped, normal load released, file closed ``aborted``) once no client
+  has been connected for ``--orphan-grace-s``.
+* SIGTERM/SIGINT abort the run (safe state) and stop the service; the service also stops by itself
+  after ``--idle-exit-s`` with no run and no client.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from multiprocessing.connection import Client, Connection, Listener
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from experiments.context import Controls
+from experiments.errors import PlanError
+from experiments.params import parse_assignments
+from experiments.runner import Runner, get_protocol
+from rigctl.acquisition import Acquisition
+from rigctl.config import RigConfig, adapters
+from rigctl.config.loader import to_toml
+from rigctl.rigs import OpenRig, open_rig
+from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
+from rigctl.storage.layout import RunDescription
+
+_log = logging.getLogger("rigctl.runservice")
+
+LIVE_QUEUE_MAX = 256
+"""Live-data messages a client may have waiting before its oldest are dropped."""
+ESTOP_REASON = "emergency stop"
+FIRST_CLIENT_WAIT_S = 60.0
+"""A new service waits at least this long for its first client before it stops as idle."""
+
+
+class _ClientLink:
+    """One connected client: a reader (commands in) and a sender with a bounded live queue."""
+
+    def __init__(self, conn: Connection, service: RunService) -> None:
+        self.conn = conn
+        self.service = service
+        self._queue: deque[tuple[str, Any]] = deque()
+        self._cond = threading.Condition()
+        self.dropped_live = 0
+        self.closed = False
+        threading.Thread(target=self._send_loop, name="runservice-send", daemon=True).start()
+        threading.Thread(target=self._read_loop, name="runservice-read", daemon=True).start()
+
+    def send(self, kind: str, payload: Any) -> None:
+        with self._cond:
+            if self.closed:
+                return
+            if kind == "daq":
+                live = sum(1 for k, _ in self._queue if k == "daq")
+                if live >= LIVE_QUEUE_MAX:
+                    for i, (k, _) in enumerate(self._queue):
+                        if k == "daq":
+                            del self._queue[i]
+                            self.dropped_live += 1
+                            break
+            self._queue.append((kind, payload))
+            self._cond.notify()
+
+    def _send_loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self.closed:
+                    self._cond.wait()
+                if self.closed:
+                    return
+                item = self._queue.popleft()
+            try:
+                self.conn.send(item)
+            except (OSError, EOFError, ValueError):
+                self.close()
+                return
+
+    def _read_loop(self) -> None:
+        try:
+            while True:
+                kind, payload = self.conn.recv()
+                self.service.command(kind, payload, self)
+        except (OSError, EOFError, ValueError, TypeError):
+            pass
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        with self._cond:
+            if self.closed:
+                return
+            self.closed = True
+            self._cond.notify_all()
+        with contextlib.suppress(Exception):
+            self.conn.close()
+        self.service.client_gone(self)
+
+
+class RunService:
+    """Serve one open rig to GUI clients on ``address`` until :meth:`stop` (or idle)."""
+
+    def __init__(self, rig: OpenRig, backend: str, address: Address, *, speed_text: str = "1",
+                 idle_exit_s: float = 10.0, orphan: str = "continue", orphan_grace_s: float = 5.0) -> None:
+        if orphan not in ("continue", "abort"):
+            raise ValueError(f"orphan policy must be 'continue' or 'abort', got {orphan!r}")
+        self.rig = rig
+        self.backend = backend
+        self.address = address
+        self.speed_text = speed_text
+        self.idle_exit_s = idle_exit_s
+        self.orphan = orphan
+        self.orphan_grace_s = orphan_grace_s
+        self.state = ServiceState(backend=backend, speed=rig.speed, rig=rig.config.rig.name,
+                                  pid=os.getpid())
+        self._clients: list[_ClientLink] = []
+        self._lock = threading.Lock()
+        self._controls: Controls | None = None
+        self._runner: Runner | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._last_client_s = time.monotonic()
+        self._idle_since = time.monotonic()
+        self._listener: Listener | None = None
+        self._ever_client = False
+
+    # ------------------------------------------------------------------ lifecycle
+    def serve(self) -> None:
+        key = self.address.new_key()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.address.socket)
+        self._listener = Listener(self.address.socket, family="AF_UNIX", authkey=key)
+        os.chmod(self.address.socket, 0o600)
+        threading.Thread(target=self._accept_loop, name="runservice-accept", daemon=True).start()
+        self._log("info", f"run service {os.getpid()} on {self.backend} ({self.address.socket})")
+        try:
+            while not self._stop.wait(0.2):
+                self._watch()
+        finally:
+            self._finish()
+
+    def stop(self, reason: str = "run service stopped") -> None:
+        """Abort any run (safe state) and end :meth:`serve` once the run has finished."""
+        self.abort(reason)
+        self._stop.set()
+
+    def _finish(self) -> None:
+        if self._controls is not None:
+            self._controls.abort("run service stopped")
+            self._controls.resume()
+        if self._thread is not None:
+            self._thread.join(120.0)
+        if self._listener is not None:
+            with contextlib.suppress(Exception):
+                self._listener.close()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.address.socket)
+        for c in list(self._clients):
+            c.close()
+
+    def _watch(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            has_clients = bool(self._clients)
+        if has_clients:
+            self._last_client_s = now
+            self._ever_client = True
+        busy = self.state.busy
+        if busy:
+            self._idle_since = now
+            if (self.orphan == "abort" and not has_clients
+                    and now - self._last_client_s > self.orphan_grace_s
+                    and self._controls is not None and not self._controls.aborted):
+                self._log("warning", "no client connected: aborting the run (--orphan abort)")
+                self.abort("aborted: the operator's window went away")
+        elif not has_clients and now - max(self._idle_since, self._last_client_s) > (
+                self.idle_exit_s if self._ever_client else max(self.idle_exit_s, FIRST_CLIENT_WAIT_S)):
+            self._log("info", "idle with no client: stopping")
+            self._stop.set()
+
+    def _accept_loop(self) -> None:
+        assert self._listener is not None
+        while not self._stop.is_set():
+            try:
+                conn = self._listener.accept()
+            except Exception:  # closed listener, failed handshake
+                if self._stop.is_set():
+                    return
+                continue
+            link = _ClientLink(conn, self)
+            with self._lock:
+                self._clients.append(link)
+            link.send("hello", self.state)
+
+    def client_gone(self, link: _ClientLink) -> None:
+        with self._lock:
+            if link in self._clients:
+                self._clients.remove(link)
+            remaining = len(self._clients)
+        if self.state.busy and remaining == 0:
+            self._log("warning", "the last client went away during a run; the run goes on"
+                      if self.orphan == "continue" else
+                      f"the last client went away during a run; aborting in {self.orphan_grace_s:g} s "
+                      "unless one reconnects")
+
+    def _broadcast(self, kind: str, payload: Any) -> None:
+        with self._lock:
+            clients = list(self._clients)
+        for c in clients:
+            c.send(kind, payload)
+
+    def _log(self, level: str, text: str) -> None:
+        getattr(_log, level if level != "warning" else "warning")(text)
+        self.state.log = [*self.state.log[-49:], (level, text)]
+        self._broadcast("log", (level, text))
+
+    # ------------------------------------------------------------------ commands (reader threads)
+    def command(self, kind: str, payload: Any, link: _ClientLink) -> None:
+        if kind == "start":
+            self.start(payload)
+        elif kind == "pause":
+            if self._controls is not None and self.state.busy:
+                self._controls.pause()
+                self.state.paused = True
+                self._broadcast("state", self.state)
+        elif kind == "resume":
+            if self._controls is not None and self.state.busy:
+                self._controls.resume()
+                self.state.paused = False
+                self._broadcast("state", self.state)
+        elif kind == "abort":
+            self.abort(str(payload or "aborted by the operator"))
+        elif kind == "estop":
+            self.emergency_stop(str(payload or ESTOP_REASON))
+        elif kind == "state":
+            link.send("state", self.state)
+        elif kind == "shutdown":
+            self.stop("run service shut down by the operator")
+        else:
+            link.send("log", ("error", f"unknown command {kind!r}"))
+
+    def abort(self, reason: str) -> None:
+        if self._controls is not None and self.state.busy:
+            self._controls.abort(reason)
+            self._controls.resume()
+
+    def emergency_stop(self, reason: str) -> None:
+        """The drivers' emergency stop on both stages, from any state; aborts a run (safe state)."""
+        problems = []
+        for stage in (self.rig.devices.tangential_stage, self.rig.devices.normal_stage):
+            try:
+                stage.emergency_stop()
+            except Exception as exc:
+                problems.append(f"{stage.name}: {exc}")
+        self.abort(f"{reason}")
+        self._log("error", f"EMERGENCY STOP ({reason})" + (f"; failed: {'; '.join(problems)}"
+                                                          if problems else ""))
+
+    def start(self, job: JobSpec) -> None:
+        with self._lock:
+            if self.state.busy:
+                link_msg = "a run is already going; not started"
+                busy = True
+            else:
+                busy = False
+                self.state.busy = True
+                self.state.job = job
+                self.state.plan = None
+                self.state.progress = None
+                self.state.paused = False
+                self.state.run_path = None if job.dry else job.out
+                self._controls = Controls()
+        if busy:
+            self._log("warning", link_msg)
+            return
+        self._broadcast("state", self.state)
+        self._thread = threading.Thread(target=self._work, args=(job,), name="runservice-run",
+                                        daemon=False)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ the run (worker thread)
+    def _work(self, job: JobSpec) -> None:
+        result = RunResult("error", "nothing done")
+        try:
+            runner = self._build(job)
+            try:
+                plan, _ = runner.plan()
+            except PlanError as exc:
+                result = RunResult("refused", f"dry run refused: {exc}")
+                return
+            self.state.plan = plan
+            self._broadcast("planned", plan)
+            if job.dry:
+                result = RunResult("dry", "dry run: nothing moved")
+                return
+            outcome = runner.run()
+            result = RunResult("run", str(outcome.status), outcome)
+        except PlanError as exc:
+            result = RunResult("refused", f"refused: {exc}")
+        except Exception as exc:
+            result = RunResult("error", f"{type(exc).__name__}: {exc}")
+        finally:
+            with self._lock:
+                self.state.busy = False
+                self.state.paused = False
+                self._idle_since = time.monotonic()
+            if result.kind == "run" and result.outcome is not None:
+                self._log("info", f"run {result.outcome.status}: {result.outcome.path}")
+            self._broadcast("done", result)
+
+    def _build(self, job: JobSpec) -> Runner:
+        rig = self.rig
+        protocol = get_protocol(job.protocol)
+        given = parse_assignments([f"{k}={v}" for k, v in job.given.items()])
+        pacer = rig.pacer
+        controls = self._controls
+        assert controls is not None
+
+        def on_acquisition(acq: Acquisition) -> None:
+            if pacer is not None:
+                pacer.follow(lambda: acq.t_s)
+            sub = acq.publisher.subscribe("daq", maxlen=512)
+            threading.Thread(target=self._forward, args=(sub,), name="runservice-live",
+                             daemon=True).start()
+
+        def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
+            ctx = runner.ctx
+            p = (i, n, desc, elapsed, eta, ctx.acq.t_s if ctx else math.nan)
+            self.state.progress = p
+            self._broadcast("progress", p)
+
+        desc = RunDescription(
+            protocol=protocol.name,
+            operator=job.operator if job.operator is not None else rig.config.rig.operator,
+            notes=job.notes, config_toml=to_toml(rig.config),
+            metadata={"backend": self.backend, "speed": job.speed_text, "rig": rig.config.rig.name,
+                      "started_from": job.started_from, "run_service_pid": str(os.getpid())},
+        )
+        runner = Runner(
+            protocol, given, rig.devices, rig.limits, out=None if job.dry or job.out is None
+            else Path(job.out),
+            daq_layout=adapters.daq_layout(rig.config),
+            camera_layout=adapters.camera_layout(rig.config) if job.camera else None,
+            description=desc, controls=controls,
+            force_limit_N=adapters.force_limit_N(rig.config), progress=progress,
+            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=job.overwrite,
+            on_acquisition=on_acquisition,
+        )
+        self._runner = runner
+        return runner
+
+    def _forward(self, sub: Any) -> None:
+        """Live DAQ blocks to every client (the columns the live view needs), until the run ends."""
+        while self.state.busy or not sub.closed:
+            block = sub.get(timeout_s=0.2)
+            if block is None:
+                if not self.state.busy:
+                    return
+                continue
+            self._broadcast("daq", {k: block[k] for k in LIVE_COLUMNS if k in block})
+
+
+def service_alive(address: Address, timeout_s: float = 2.0) -> bool:
+    """True if a run service answers on ``address``."""
+    if not Path(address.socket).exists() or not address.key_file.exists():
+        return False
+    try:
+        conn = Client(address.socket, family="AF_UNIX", authkey=address.key())
+    except (OSError, EOFError, ValueError, Exception):
+        return False
+    try:
+        return bool(conn.poll(timeout_s))
+    finally:
+        conn.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    from rigctl.config.loader import load_effective_config
+    from rigctl.errors import InputError
+    from rigctl.rigs import parse_speed
+    from rigctl.runservice.wire import default_address
+
+    parser = argparse.ArgumentParser(prog="python -m rigctl.runservice",
+                                     description="the run service of rigctl gui (owns the rig)")
+    parser.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"])
+    parser.add_argument("--config", default=None)
+    parser.add_argument("--speed", default="1")
+    parser.add_argument("--dir", default=None, help="runtime folder (socket, key, log)")
+    parser.add_argument("--idle-exit-s", type=float, default=10.0)
+    parser.add_argument("--orphan", choices=["continue", "abort"], default="continue",
+                        help="a run whose last client went away: goes on (default) or is aborted")
+    parser.add_argument("--orphan-grace-s", type=float, default=5.0)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+    try:
+        speed = parse_speed(args.speed)
+        config, source = load_effective_config(args.config)
+    except InputError as exc:
+        print(f"rigctl runservice: error: {exc}", file=sys.stderr)
+        return 2
+    backend = args.backend or config.rig.backend
+    if backend == "real" and source is None:
+        print("rigctl runservice: error: the real backend needs a rig configuration: --config rig.toml",
+              file=sys.stderr)
+        return 2
+    address = Address(Path(args.dir)) if args.dir else default_address()
+    if service_alive(address):
+        print(f"rigctl runservice: error: a run service is already listening on {address.socket}",
+              file=sys.stderr)
+        return 1
+    return serve(backend, config, speed, address, speed_text=args.speed, idle_exit_s=args.idle_exit_s,
+                 orphan=args.orphan, orphan_grace_s=args.orphan_grace_s)
+
+
+def serve(backend: str, config: RigConfig, speed: float, address: Address, **kw: Any) -> int:
+    with open_rig(backend, config, speed) as rig:
+        service = RunService(rig, backend, address, **kw)
+
+        def on_signal(signum: int, frame: FrameType | None) -> None:
+            service.stop(f"run service terminated (signal {signum})")
+
+        signal.signal(signal.SIGTERM, on_signal)
+        signal.signal(signal.SIGINT, on_signal)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)  # the terminal of the GUI that started it closing
+        service.serve()
+    return 0

@@ -1,0 +1,110 @@
+"""Where the run service listens and how its messages look (shared by server and client).
+
+The service listens on a Unix-domain socket through :mod:`multiprocessing.connection` (length-prefixed
+pickles, HMAC challenge with a per-service key stored next to the socket with mode 0600, so only the
+user who started it can connect). Messages are tuples ``(kind, payload)``.
+
+Client to service: ``("start", JobSpec)``, ``("pause", None)``, ``("resume", None)``,
+``("abort", reason)``, ``("estop", reason)``, ``("shutdown", None)``.
+Service to client: ``("hello", ServiceState)``, ``("planned", Plan)``, ``("progress", (i, n, step,
+elapsed, eta, device_t))``, ``("daq", columns)``, ``("done", RunResult)``, ``("log", (level, text))``,
+``("state", ServiceState)``.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+RUNTIME_DIR_ENV = "RIGCTL_RUNTIME_DIR"
+SOCKET_NAME = "runservice.sock"
+KEY_NAME = "runservice.key"
+LOG_NAME = "runservice.log"
+LIVE_COLUMNS = ("t_s", "ft_N", "fn_N", "d1_m", "d2_m")
+"""DAQ columns forwarded to clients for the live view."""
+
+
+def runtime_dir() -> Path:
+    """``$RIGCTL_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/rigctl``, else ``<tmp>/rigctl-<uid>``."""
+    if os.environ.get(RUNTIME_DIR_ENV):
+        return Path(os.environ[RUNTIME_DIR_ENV])
+    if os.environ.get("XDG_RUNTIME_DIR"):
+        return Path(os.environ["XDG_RUNTIME_DIR"]) / "rigctl"
+    return Path(tempfile.gettempdir()) / f"rigctl-{os.getuid()}"
+
+
+@dataclass(frozen=True)
+class Address:
+    directory: Path
+
+    @property
+    def socket(self) -> str:
+        return str(self.directory / SOCKET_NAME)
+
+    @property
+    def key_file(self) -> Path:
+        return self.directory / KEY_NAME
+
+    @property
+    def log_file(self) -> Path:
+        return self.directory / LOG_NAME
+
+    def new_key(self) -> bytes:
+        """Write a fresh key (mode 0600) for a service about to listen here."""
+        self.directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+        key = secrets.token_bytes(32)
+        fd = os.open(self.key_file, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "wb") as f:
+            f.write(key)
+        return key
+
+    def key(self) -> bytes:
+        return self.key_file.read_bytes()
+
+
+def default_address() -> Address:
+    return Address(runtime_dir())
+
+
+@dataclass(frozen=True)
+class JobSpec:
+    """One protocol run as the GUI asks for it (parameters as text, exactly like ``--param``)."""
+
+    protocol: str
+    given: dict[str, Any]
+    out: str | None
+    overwrite: bool = False
+    camera: bool = True
+    dry: bool = False
+    operator: str | None = None
+    notes: str = ""
+    speed_text: str = "1"
+    started_from: str = "gui"
+
+
+@dataclass(frozen=True)
+class RunResult:
+    kind: str
+    """'dry' (plan shown), 'refused' (plan error), 'run' (outcome), 'error' (nothing recorded)."""
+    message: str = ""
+    outcome: Any = None
+    """experiments.runner.RunOutcome for kind 'run'."""
+
+
+@dataclass
+class ServiceState:
+    backend: str
+    speed: float
+    rig: str
+    pid: int
+    busy: bool = False
+    job: JobSpec | None = None
+    plan: Any = None
+    progress: tuple[int, int, str, float, float, float] | None = None
+    run_path: str | None = None
+    paused: bool = False
+    log: list[tuple[str, str]] = field(default_factory=list)
