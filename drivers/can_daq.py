@@ -46,11 +46,10 @@ from drivers.errors import (
     InvalidValueError,
     LimitError,
     ProtocolError,
-    SettingError,
     rejected,
 )
 from drivers.interfaces import ChannelMap, Daq, DaqBlock
-from drivers.validate import check_integer, check_number
+from drivers.validate import check_integer, check_number, refused
 
 MAX_RATE_HZ = 0xFFFF
 """The set-rate command carries a uint16."""
@@ -77,9 +76,6 @@ class CanDaqConfig:
     def __post_init__(self) -> None:
         owner = f"daq {self.name!r}"
 
-        def bad(key: str, why: str) -> SettingError:
-            return SettingError(owner, key, getattr(self, key), why)
-
         NodeIds(self.node_id)  # validates the node id
         for key, unit in (
             ("rate_hz", "Hz"),
@@ -90,17 +86,17 @@ class CanDaqConfig:
         ):
             check_number(owner, key, getattr(self, key), unit=unit, gt=0.0)
         if self.rate_hz != int(self.rate_hz) or self.rate_hz > MAX_RATE_HZ:
-            raise bad("rate_hz", f"must be a whole number of Hz up to {MAX_RATE_HZ}")
+            raise refused(owner, self, "rate_hz", f"must be a whole number of Hz up to {MAX_RATE_HZ}")
         for key, low, high in (("command_retries", 0, 3), ("rx_queue_size", 16, 1 << 22)):
             check_integer(owner, key, getattr(self, key), low, high)
         if self.bitrate is not None and (
             isinstance(self.bitrate, bool) or not isinstance(self.bitrate, int) or self.bitrate <= 0
         ):
-            raise bad("bitrate", "must be a positive integer or None")
+            raise refused(owner, self, "bitrate", "must be a positive integer or None")
         if not isinstance(self.interface, str) or not self.interface:
-            raise bad("interface", "must name a python-can interface")
+            raise refused(owner, self, "interface", "must name a python-can interface")
         if not isinstance(self.channel_map, ChannelMap):
-            raise bad("channel_map", "must be a ChannelMap")
+            raise refused(owner, self, "channel_map", "must be a ChannelMap")
 
 
 @dataclass(frozen=True)

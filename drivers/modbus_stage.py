@@ -30,7 +30,7 @@ from pymodbus.client.base import ModbusBaseSyncClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
 from pymodbus.pdu import ModbusPDU
 
-from drivers.errors import DeviceTimeout, InvalidValueError, ProtocolError, SettingError
+from drivers.errors import DeviceTimeout, InvalidValueError, ProtocolError
 from drivers.interfaces import LoadingStage, StageLimits, StageStatus
 from drivers.modbus_codec import (
     INT32_MAX,
@@ -44,7 +44,7 @@ from drivers.modbus_codec import (
     words_to_int32,
 )
 from drivers.safety import EmergencyStop
-from drivers.validate import check_integer, check_number
+from drivers.validate import check_integer, check_number, refused
 
 TANGENTIAL_COUNTS_PER_M = 3_125_000.0
 """Tangential stage: 0.32 um per count (seed, Section 2.1; docs/protocols.md)."""
@@ -96,17 +96,14 @@ class StageConfig:
     def __post_init__(self) -> None:
         owner = f"stage {self.name!r}"
 
-        def bad(key: str, why: str) -> SettingError:
-            return SettingError(owner, key, getattr(self, key), why)
-
         if self.transport not in ("tcp", "rtu"):
-            raise bad("transport", "must be 'tcp' or 'rtu'")
+            raise refused(owner, self, "transport", "must be 'tcp' or 'rtu'")
         if self.transport == "rtu" and not self.serial_port:
-            raise bad("serial_port", "required for transport 'rtu'")
+            raise refused(owner, self, "serial_port", "required for transport 'rtu'")
         if self.word_order not in WORD_ORDERS:
-            raise bad("word_order", f"must be one of {WORD_ORDERS}")
+            raise refused(owner, self, "word_order", f"must be one of {WORD_ORDERS}")
         if self.parity not in ("N", "E", "O"):
-            raise bad("parity", "must be 'N', 'E' or 'O'")
+            raise refused(owner, self, "parity", "must be 'N', 'E' or 'O'")
         for key, unit in (("counts_per_m", "counts/m"), ("velocity_counts_per_m_s", "counts/(m/s)"),
                           ("timeout_s", "s")):
             check_number(owner, key, getattr(self, key), unit=unit, gt=0.0)
@@ -120,9 +117,9 @@ class StageConfig:
         ):
             check_integer(owner, key, getattr(self, key), low, high)
         if not isinstance(self.limits, StageLimits):
-            raise bad("limits", "must be a StageLimits")
+            raise refused(owner, self, "limits", "must be a StageLimits")
         if not isinstance(self.registers, RegisterMap):
-            raise bad("registers", "must be a RegisterMap")
+            raise refused(owner, self, "registers", "must be a RegisterMap")
         for key in ("min_position_m", "max_position_m"):
             counts = getattr(self.limits, key) * self.counts_per_m
             if not INT32_MIN <= counts <= INT32_MAX:

@@ -84,3 +84,8 @@ def check_integer(owner: str, key: str, value: object, low: int, high: int) -> i
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
         raise SettingError(owner, key, value, f"must be an integer in {low}..{high}")
     return value
+
+
+def refused(owner: str, config: object, key: str, reason: str) -> SettingError:
+    """The :class:`SettingError` for ``config.key`` (its current value), for checks that are not numbers."""
+    return SettingError(owner, key, getattr(config, key), reason)

@@ -140,11 +140,11 @@ class RunOutcome:
     problems: list[str] = field(default_factory=list)
 
 
-ProgressFn = Callable[[int, int, str, float, float], None]
+RunProgressFn = Callable[[int, int, str, float, float], None]
 """progress(step_index, n_steps, description, elapsed_device_s, eta_device_s)"""
 
 
-def terminal_progress(speed: float) -> ProgressFn:
+def terminal_progress(speed: float) -> RunProgressFn:
     """A one-line progress display on stderr with the ETA in rig time and wall time."""
     last = [0.0]
 
@@ -176,7 +176,7 @@ class Runner:
         description: RunDescription | None = None,
         controls: Controls | None = None,
         force_limit_N: float | None = None,
-        progress: ProgressFn | None = None,
+        progress: RunProgressFn | None = None,
         flush_interval_s: float = 0.25,
         overwrite: bool = False,
         on_acquisition: Callable[[Acquisition], None] | None = None,

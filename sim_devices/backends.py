@@ -51,8 +51,7 @@ from sim_devices.inprocess import InProcessDaq, InProcessProbe, InProcessStage
 from sim_devices.modbus_stage_server import ModbusStageServer, StageWireConfig
 from sim_devices.probe_sim import ProbeSim
 from sim_devices.sensors import ForceSensorSpec
-from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
-from sim_devices.virtual_rig import StageControl, VirtualRig
+from sim_devices.virtual_rig import StageControl, VirtualRig, VirtualRigConfig
 
 _log = logging.getLogger(__name__)
 

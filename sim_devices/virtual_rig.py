@@ -54,7 +54,7 @@ class RigFailedError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class RigConfig:
+class VirtualRigConfig:
     """Everything about the virtual rig that is not the friction model."""
 
     sample_rate_hz: float = 1024.0
@@ -160,10 +160,10 @@ class VirtualRig(SimService):
         model: ModelSpec | None = None,
         *,
         speed: float | None = None,
-        config: RigConfig | None = None,
+        config: VirtualRigConfig | None = None,
     ) -> None:
         super().__init__("virtual-rig")
-        self.config = cfg = config or RigConfig()
+        self.config = cfg = config or VirtualRigConfig()
         self.model = model if model is not None else build_model()
         self.clock = SimClock(speed)
         self._sim = Simulator(self.model, sample_rate_hz=cfg.sample_rate_hz)

@@ -2,7 +2,7 @@
 
 The drivers and simulators define what they need (``drivers.modbus_stage.StageConfig``,
 ``drivers.can_daq.CanDaqConfig``, ``drivers.serial_probe.ProbeConfig``,
-``drivers.opencv_camera.CameraConfig``, ``sim_devices.virtual_rig.RigConfig``); the register map
+``drivers.opencv_camera.CameraConfig``, ``sim_devices.virtual_rig.VirtualRigConfig``); the register map
 and the channel map are the drivers' own classes used directly as TOML tables. These functions hand
 the rest over, so the devices' own checks apply to what the file says.
 """
@@ -22,7 +22,7 @@ from rigctl.storage.layout import CameraLayout, DaqLayout
 
 if TYPE_CHECKING:  # the simulators pull in the physics engine: imported only when asked for
     from sim_devices.backends import SimSettings
-    from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
+    from sim_devices.virtual_rig import VirtualRigConfig
 
 StageName = Literal["tangential_stage", "normal_stage"]
 ProbeName = Literal["d1", "d2"]
@@ -125,8 +125,8 @@ def camera_layout(config: RigConfig) -> CameraLayout:
 
 
 def virtual_rig_config(config: RigConfig) -> VirtualRigConfig:
-    """The :class:`sim_devices.virtual_rig.RigConfig` of the simulated rig (rate, probes, seed)."""
-    from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
+    """The :class:`sim_devices.virtual_rig.VirtualRigConfig` of the simulated rig (rate, probes, seed)."""
+    from sim_devices.virtual_rig import VirtualRigConfig
 
     base = VirtualRigConfig()
     probes = tuple(

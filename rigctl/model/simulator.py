@@ -22,7 +22,7 @@ from rigctl.model.params import ParameterError
 from rigctl.model.result import SimResult, SlipEvent
 from rigctl.model.spec import CoreSetup, ModelSpec
 
-ProgressFn = Callable[[float, float], None]
+SimProgressFn = Callable[[float, float], None]
 """progress(t_done_s, t_total_s)"""
 
 
@@ -71,7 +71,7 @@ class _Integration:
         kt_fn: np.ndarray,
         t_out: np.ndarray,
         record_elements: bool,
-        progress: ProgressFn | None = None,
+        progress: SimProgressFn | None = None,
     ) -> Outputs:
         n_out = t_out.shape[0]
         knots = np.empty((layout.N_KROWS, kt_t.shape[0]))
@@ -210,7 +210,7 @@ class Simulator:
         noise: bool | NoiseModel = False,
         seed: int | None = None,
         record_elements: bool = True,
-        progress: ProgressFn | None = None,
+        progress: SimProgressFn | None = None,
     ) -> SimResult:
         """Simulate the whole drive; samples at k / rate for k = 0 .. duration * rate."""
         n_out = int(np.floor(drive.duration_s * self.sample_rate_hz + 1e-9)) + 1

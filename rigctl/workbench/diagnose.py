@@ -59,7 +59,7 @@ class Round:
 
 
 @dataclass
-class Step:
+class DiagnosisStep:
     index: int
     model: str
     added: str | None
@@ -76,7 +76,7 @@ class Step:
 class Diagnosis:
     dataset: Dataset
     rounds: list[Round]
-    steps: list[Step] = field(default_factory=list)
+    steps: list[DiagnosisStep] = field(default_factory=list)
     protocols: list[str] = field(default_factory=list)
 
     @property
@@ -240,7 +240,7 @@ def diagnose(
     model = baseline or identify_model(dataset, choice)
     say(f"baseline error {model.error:.3g}; fitting {len(pool)} candidate effects")
     diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
-    diag.steps.append(Step(0, model.choice.label(), None, model.error, None))
+    diag.steps.append(DiagnosisStep(0, model.choice.label(), None, model.error, None))
     while True:
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
                         progress=progress, timeout_s=timeout_s, in_process=in_process)
@@ -254,7 +254,7 @@ def diagnose(
         best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
         model = refine(dataset, rnd.fits[best])
-        diag.steps.append(Step(len(diag.steps), model.choice.label(), best, model.error,
+        diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), best, model.error,
                                best_score.delta_bic, note))
         pool = [c for c in pool if c != best]
         if not pool:

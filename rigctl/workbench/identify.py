@@ -23,7 +23,7 @@ residual at all.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -270,9 +270,6 @@ def uncertainties(
         elif sp > 0.5 * abs(v) and sp > 0.05 * (fp.upper - fp.lower):
             undetermined.append(fp.name)
     return sigma, undetermined
-
-
-ProgressFn = Callable[[str], None]
 
 
 def fit(

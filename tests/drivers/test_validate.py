@@ -18,7 +18,7 @@ from drivers.validate import bound_problem, check_integer, check_number
 from rigctl.config.errors import ConfigError
 from rigctl.config.loader import parse_config
 from sim_devices.modbus_stage_server import StageWireConfig
-from sim_devices.virtual_rig import RigConfig as VirtualRigConfig
+from sim_devices.virtual_rig import VirtualRigConfig
 
 
 @pytest.mark.parametrize(

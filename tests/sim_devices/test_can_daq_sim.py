@@ -12,7 +12,7 @@ import pytest
 
 from sim_devices.can_daq_sim import CanDaqSim, CanDaqSimConfig
 from sim_devices.sensors import ForceSensorSpec, ProbeSpec
-from sim_devices.virtual_rig import RigConfig, VirtualRig
+from sim_devices.virtual_rig import VirtualRig, VirtualRigConfig
 
 QUIET = ForceSensorSpec(noise_rms_N=(0.0, 0.0, 0.0), analog_noise_rms_V=0.0)
 
@@ -21,7 +21,7 @@ QUIET = ForceSensorSpec(noise_rms_N=(0.0, 0.0, 0.0), analog_noise_rms_V=0.0)
 def rig() -> VirtualRig:
     """Manual clock, noiseless probes (the analog channels then read exactly 0 V at rest)."""
     quiet = (ProbeSpec(noise_rms_m=0.0), ProbeSpec(noise_rms_m=0.0))
-    return VirtualRig(config=RigConfig(probes=quiet))
+    return VirtualRig(config=VirtualRigConfig(probes=quiet))
 
 
 @pytest.fixture

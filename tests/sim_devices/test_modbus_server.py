@@ -14,7 +14,7 @@ from sim_devices.modbus_stage_server import (
     ModbusStageServer,
     StageWireConfig,
 )
-from sim_devices.virtual_rig import RigConfig, VirtualRig
+from sim_devices.virtual_rig import VirtualRig, VirtualRigConfig
 
 UNIT = 1
 
@@ -133,7 +133,7 @@ def test_home_sets_homed_when_the_switch_is_reached(rig: VirtualRig) -> None:
 
 
 def test_over_load_of_the_normal_stage_raises_alarm_3() -> None:
-    rig = VirtualRig(config=RigConfig(max_load_N=300.0))
+    rig = VirtualRig(config=VirtualRigConfig(max_load_N=300.0))
     with ModbusStageServer(rig.normal, NORMAL_WIRE) as server:
         c = connect(server.port)
         try:

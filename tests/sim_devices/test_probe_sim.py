@@ -11,7 +11,7 @@ import pytest
 
 from sim_devices.probe_sim import ProbeSim
 from sim_devices.sensors import ProbeSpec
-from sim_devices.virtual_rig import RigConfig, VirtualRig
+from sim_devices.virtual_rig import VirtualRig, VirtualRigConfig
 
 
 class Host:
@@ -43,7 +43,7 @@ class Host:
 @pytest.fixture
 def rig() -> VirtualRig:
     quiet = ProbeSpec(serial="SIM-D1", noise_rms_m=0.0)
-    return VirtualRig(config=RigConfig(probes=(quiet, ProbeSpec(serial="SIM-D2", noise_rms_m=0.0))))
+    return VirtualRig(config=VirtualRigConfig(probes=(quiet, ProbeSpec(serial="SIM-D2", noise_rms_m=0.0))))
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import pytest
 
 from sim_devices.sample_ring import SamplesLostError
 from sim_devices.stage_axis import Alarm
-from sim_devices.virtual_rig import RigConfig, VirtualRig
+from sim_devices.virtual_rig import VirtualRig, VirtualRigConfig
 
 
 def loaded_rig(fn_N: float, **kwargs: object) -> VirtualRig:
@@ -51,7 +51,7 @@ def test_stick_slip_on_the_sample_grid() -> None:
 
 
 def test_overload_latches_alarm_3_and_fn_never_exceeds_the_maximum() -> None:
-    rig = VirtualRig(config=RigConfig(max_load_N=400.0))
+    rig = VirtualRig(config=VirtualRigConfig(max_load_N=400.0))
     rig.normal.enable()
     rig.normal.move_to(rig.config.contact.z_for_fn_m(300.0) + 1e-3, 1e-4)
     rig.advance_to(12.0)
@@ -75,7 +75,7 @@ def test_clock_real_time_and_accelerated() -> None:
 
 
 def test_old_samples_are_reported_lost_not_invented() -> None:
-    rig = VirtualRig(config=RigConfig(history_s=1.0))
+    rig = VirtualRig(config=VirtualRigConfig(history_s=1.0))
     rig.advance_to(3.0)
     with pytest.raises(SamplesLostError) as err:
         rig.samples(0, 10)

@@ -10,12 +10,12 @@ import time
 
 from sim_devices.can_daq_sim import CanDaqSim, CanDaqSimConfig
 from sim_devices.sensors import ForceSensorSpec, ProbeSpec
-from sim_devices.virtual_rig import RigConfig, VirtualRig
+from sim_devices.virtual_rig import VirtualRig, VirtualRigConfig
 
 
 def main(channel: str) -> None:
     quiet = (ProbeSpec(noise_rms_m=0.0), ProbeSpec(noise_rms_m=0.0))
-    rig = VirtualRig(config=RigConfig(probes=quiet))
+    rig = VirtualRig(config=VirtualRigConfig(probes=quiet))
     rig.normal.enable()
     rig.normal.move_to(rig.config.contact.z_for_fn_m(123.456), 2e-3)
     rig.advance_to(1.0)

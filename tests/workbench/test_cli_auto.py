@@ -16,7 +16,7 @@ from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
 from rigctl.workbench.compare import compare
 from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.diagnose import Diagnosis, Round, Step
+from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ranking import Verdict, score_candidate
 from rigctl.workbench.report import write_diagnose_report
@@ -73,7 +73,7 @@ def test_a_diagnosis_that_added_nothing_has_no_final_model_section(two_effects, 
     score = score_candidate("wear", cmp.fit.error, cmp.fit.error, dataset.n_events, 1)
     score.explains = "nothing (no improvement)"
     diag = Diagnosis(dataset, [Round(cmp.fit, [score], Verdict("none", [], None), {}, [])],
-                     steps=[Step(0, cmp.fit.choice.label(), None, cmp.fit.error, None)])
+                     steps=[DiagnosisStep(0, cmp.fit.choice.label(), None, cmp.fit.error, None)])
     # a final comparison handed over anyway is not shown twice: nothing was added
     html = write_diagnose_report(diag, cmp, tmp_path, final_cmp=cmp).read_text()
     assert f"Model paper: error {cmp.fit.error:.3g}" in html
