@@ -66,7 +66,9 @@ class LivePlot(QWidget):
         self.fn_curve = _curve(self.force_plot, _RED, "Fn")
         self.delta_plot = self.glw.addPlot(row=1, col=0)
         self.delta_plot.setLabel("left", "delta", units="m")
-        self.delta_plot.setLabel("bottom", "rig time", units="s")
+        self.delta_plot.setLabel("bottom", "rig time (s)")
+        self.delta_plot.getAxis("bottom").enableAutoSIPrefix(False)
+        self.force_plot.getAxis("bottom").setStyle(showValues=False)  # shared with delta below
         self.delta_plot.showGrid(x=True, y=True, alpha=0.3)
         self.delta_plot.setXLink(self.force_plot)
         self.delta_curve = _curve(self.delta_plot, _GREEN)
