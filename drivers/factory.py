@@ -8,7 +8,8 @@ e.g. ``devices.normal_stage.limits.max_position_m: expected a number, got 'abc'`
 errors too (a typo must not silently fall back to a default).
 
 ``modbus_stage`` takes a ``role`` (``"normal"`` or ``"tangential"``) that presets ``counts_per_m``
-and ``limits`` from the seed's rig; a partial ``limits`` mapping overrides only what it names.
+and ``limits`` from the paper's rig (Han et al. 2022); a partial ``limits`` mapping overrides only
+what it names.
 """
 
 from __future__ import annotations

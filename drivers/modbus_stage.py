@@ -47,16 +47,16 @@ from drivers.safety import EmergencyStop
 from drivers.validate import check_integer, check_number, refused
 
 TANGENTIAL_COUNTS_PER_M = 3_125_000.0
-"""Tangential stage: 0.32 um per count (seed, Section 2.1; docs/protocols.md)."""
+"""Tangential stage: 0.32 um per count (Han et al. 2022, Section 2.1; docs/protocols.md)."""
 NORMAL_COUNTS_PER_M = 1_666_667.0
-"""Normal stage: 0.6 um per count (seed, Section 2.1; docs/protocols.md)."""
+"""Normal stage: 0.6 um per count (Han et al. 2022, Section 2.1; docs/protocols.md)."""
 VELOCITY_COUNTS_PER_M_S = 1e9
 """Velocity register scale of both controllers: nm/s (docs/protocols.md)."""
 
 TANGENTIAL_LIMITS = StageLimits(min_position_m=0.0, max_position_m=0.200, max_velocity_m_s=5e-3)
-"""Stroke 200 mm (seed); the speed limit is a choice (the experiments use about 1.3 um/s)."""
+"""Stroke 200 mm (Han et al. 2022); the speed limit is a choice (the experiments use about 1.3 um/s)."""
 NORMAL_LIMITS = StageLimits(min_position_m=0.0, max_position_m=0.025, max_velocity_m_s=2e-3)
-"""Stroke 25 mm (seed); the speed limit is a choice."""
+"""Stroke 25 mm (Han et al. 2022); the speed limit is a choice."""
 
 MODBUS_EXCEPTION_NAMES: dict[int, str] = {
     1: "illegal function",

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 _log = logging.getLogger(__name__)
 
 DEFAULT_FORCE_LIMIT_N = 800.0
-"""Maximum normal load of the rig's normal loading stage (seed, Section 2.1)."""
+"""Maximum normal load of the rig's normal loading stage (Han et al. 2022, Section 2.1)."""
 
 
 class Interlock(Protocol):

@@ -1,7 +1,7 @@
 """The measured-run container shared by storage, import/export, the simulator and the workbench.
 
 A :class:`MeasuredRun` holds what the rig records at the sensor sample rate, in SI units, with the
-column names of the CSV exchange format (``shared/spec/import-format.md``): ``t_s``, ``x_stage_m``,
+column names of the CSV exchange format (docs/csv-format.md): ``t_s``, ``x_stage_m``,
 ``fn_N``, ``ft_N``, ``d1_m``, ``d2_m``. Extra columns ride along in ``extra``; ``metadata`` keeps the
 ``# key: value`` lines (unknown keys included) and anything a run file records about the run.
 """

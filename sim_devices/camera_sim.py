@@ -31,7 +31,7 @@ from sim_devices.sample_ring import SamplesLostError
 from sim_devices.virtual_rig import VirtualRig
 
 FRAME_RATE_HZ = 60.0
-"""Camera frame rate of the seed's rig (Section 2.1)."""
+"""Camera frame rate of the paper's rig (Han et al. 2022, Section 2.1)."""
 
 
 class SimCamera(Camera):

@@ -1,9 +1,10 @@
 """Total-reflection images of the real contact area, rendered from the model's contact state.
 
-Optics (seed, Sections 2.1-2.2; Rubinstein et al., Nature 430 (2004) 1005): light totally reflected
-at the glass surface is frustrated where an asperity of the rough PMMA boss touches the glass, so the
-camera sees bright spots on a dark field, brighter where the local pressure is higher (seed, Section
-3.2: "the brighter the image of the local area is, the greater the stress is").
+Optics (Han et al. 2022, Sections 2.1-2.2; Rubinstein et al., Nature 430 (2004) 1005): light
+totally reflected at the glass surface is frustrated where an asperity of the rough PMMA boss touches
+the glass, so the camera sees bright spots on a dark field, brighter where the local pressure is
+higher (Han et al. 2022, Section 3.2: "the brighter the image of the local area is, the greater the
+stress is").
 
 Geometry: the 9 x 9 mm boss is a square centred in the frame, ``boss_fill`` of the shorter image side.
 Image columns run along the sliding direction x: the boss's left edge is x = 0, the back end, where
@@ -12,15 +13,16 @@ element 0 of the model sits; element i covers x in [i/N, (i+1)/N).
 Per frame, with Fn, the element load shares P_i (sum 1) and the sliding flags:
 
 1. Nominal pressure along x, p(x) = Fn * N * P(x) / A0 with A0 = 81 mm^2 and P(x) interpolated
-   linearly between element centres (seed, Section 3.2: the equivalent stress distribution).
+   linearly between element centres (Han et al. 2022, Section 3.2: the equivalent stress distribution).
 2. Real contact fraction (Persson, J. Chem. Phys. 115 (2001) 3840, eq. 33; linear limit
    A/A0 = kappa p / (E* g) with kappa ~ 2, Hyun et al., Phys. Rev. E 70 (2004) 026117):
 
        a(x) = erf( (sqrt(pi) / 2) * kappa * p(x) / (E* g) ) * s(x)
 
    where g is the RMS surface slope and s(x) = ``separation_factor`` where elements slide during the
-   initial stage (contact separation at the back end as Ft grows, seed Section 3.2 and Fig. 9), else 1.
-   a is linear in p at low load, so the summed intensity Isum is nearly linear in Fn (seed Fig. 3a).
+   initial stage (contact separation at the back end as Ft grows, Han et al. 2022, Section 3.2 and
+   Fig. 9), else 1. a is linear in p at low load, so the summed intensity Isum is nearly linear in Fn
+   (Han et al. 2022, Fig. 3a).
 3. Which pixels touch: those whose height exceeds the level u(x) that the fraction a(x) of the
    surface's height distribution lies above, u(x) = F_h^-1(1 - a(x)) (the bearing-area / Abbott
    construction, Greenwood and Williamson, Proc. R. Soc. A 295 (1966) 300).
@@ -40,7 +42,7 @@ from scipy.special import erf
 from sim_devices.rough_surface import SQ_BOSS_M, rough_surface
 
 BOSS_SIDE_M = 9e-3
-"""Side of the PMMA boss (seed, Section 2.1, Fig. 1b)."""
+"""Side of the PMMA boss (Han et al. 2022, Section 2.1, Fig. 1b)."""
 
 MAX_WIDTH_PX = 640
 MAX_HEIGHT_PX = 480
@@ -79,7 +81,7 @@ class ContactOptics:
     e_star_Pa: float = 3.2e9
     """Effective modulus of PMMA (E ~ 3 GPa, nu 0.35) on glass (E 70 GPa, nu 0.22)."""
     slope_rms: float = 0.1
-    """RMS slope g of the rough surface (assumed; not reported by the seed)."""
+    """RMS slope g of the rough surface (assumed; not reported by Han et al. 2022)."""
     kappa: float = 2.0
     separation_factor: float = 0.35
     """Contact fraction kept by elements sliding in the initial stage (a rendering choice)."""

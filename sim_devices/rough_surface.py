@@ -10,7 +10,7 @@ Jacobs, Junge and Pastewka, Surf. Topogr.: Metrol. Prop. 5 (2017) 013001, eq. 4)
 A height field with this spectrum is synthesised by the spectral (Fourier filtering) method (Jacobs et
 al. 2017, Sec. 5; Wu, Tribol. Int. 33 (2000) 47): complex Gaussian white noise is shaped by
 sqrt(C(q)), transformed back, and the real part is scaled so that its root-mean-square roughness equals
-Sq exactly (3.024 um for the PMMA boss of the seed, Section 2.1). The seed paper's measured PSD is
+Sq exactly (3.024 um for the PMMA boss of Han et al. 2022, Section 2.1). The paper's measured PSD is
 stable for spatial frequencies 0.02-0.18 um^-1 (Section 2.3); those wavelengths (5-50 um) are below
 one pixel of a whole-boss image, so the image resolves the long-wavelength part of the spectrum and
 the sub-pixel roughness acts through the contact fraction of each pixel (see contact_image.py).
@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 SQ_BOSS_M = 3.024e-6
-"""Root-mean-square roughness Sq of the PMMA boss before the experiments (seed, Section 2.1)."""
+"""Root-mean-square roughness Sq of the PMMA boss before the experiments (Han et al. 2022, Section 2.1)."""
 
 
 def psd_isotropic(

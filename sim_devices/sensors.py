@@ -9,7 +9,7 @@ reading a real mounting shows, modelled as a misalignment crosstalk ``crosstalk_
 adds Gaussian noise, subtracts its tare offset, and is quantised to ``force_N_per_count`` with int16
 saturation (+-655.34 N at the default 0.02 N/count, as a real ADC range saturates).
 
-Probes (MTI-2100 with RS2032R, seed Section 2.1): range 74 um centred on the zero, resolution
+Probes (MTI-2100 with RS2032R, Han et al. 2022, Section 2.1): range 74 um centred on the zero, resolution
 0.019 um. The reading is the probe's gap change (the model's ideal d1 / d2 plus a mounting offset)
 minus the zero set by ``ZR``, plus Gaussian noise, quantised to the resolution. Beyond +-37 um of the
 zero the probe reports over-range (never a clipped number); its analog output then goes to the
@@ -101,7 +101,7 @@ class ForceSensor:
 
 @dataclass(frozen=True)
 class ProbeSpec:
-    """One fibre-optic probe (MTI-2100 + RS2032R, seed Section 2.1)."""
+    """One fibre-optic probe (MTI-2100 + RS2032R, Han et al. 2022, Section 2.1)."""
 
     model: str = "MTI-2100/RS2032R-sim"
     serial: str = "SIM0001"

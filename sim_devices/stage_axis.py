@@ -71,19 +71,20 @@ class StageAxisParams:
 TANGENTIAL_STAGE = StageAxisParams(
     name="tangential",
     travel_min_m=0.0,
-    travel_max_m=0.200,  # stroke 200 mm (seed, Section 2.1)
+    travel_max_m=0.200,  # stroke 200 mm (Han et al. 2022, Section 2.1)
     max_velocity_m_s=5e-3,
     accel_m_s2=5e-3,
     home_position_m=0.0,
     start_position_m=0.100,
     homing_velocity_m_s=2e-3,
 )
-"""Tangential stage of the seed's rig: 200 mm stroke; speed and acceleration are choices."""
+"""Tangential stage of the paper's rig (Han et al. 2022): 200 mm stroke; speed and acceleration
+are choices."""
 
 NORMAL_STAGE = StageAxisParams(
     name="normal",
     travel_min_m=0.0,
-    travel_max_m=0.025,  # stroke 25 mm (seed, Section 2.1)
+    travel_max_m=0.025,  # stroke 25 mm (Han et al. 2022, Section 2.1)
     max_velocity_m_s=2e-3,
     accel_m_s2=5e-3,
     home_position_m=0.0,

@@ -4,8 +4,8 @@
 The defaults are the configuration used when no file is given, and they describe the simulated rig
 (``backend = "sim"``), so every command works on a fresh clone without hardware. Wire-level values
 (register map, word order, scales, CAN ids, probe protocol) follow docs/protocols.md; rated values
-come from the paper's rig (seed, Section 2.1): normal stroke 25 mm, tangential stroke 200 mm, maximum
-normal load 800 N, sampling at 1024 Hz, camera at 60 Hz.
+come from the paper's rig (Han et al. 2022, Section 2.1): normal stroke 25 mm, tangential stroke
+200 mm, maximum normal load 800 N, sampling at 1024 Hz, camera at 60 Hz.
 
 A key's unit is in its name (``max_force_N``, ``timeout_s``); its meaning, unit and bounds are in its
 :func:`~rigctl.config.fields.setting` declaration, from which docs/configuration.md is generated.
@@ -29,11 +29,11 @@ from drivers.safety import DEFAULT_FORCE_LIMIT_N
 from rigctl.config.fields import Setting, describe, section, setting
 
 RATED_NORMAL_FORCE_N = DEFAULT_FORCE_LIMIT_N
-"""Maximum load of the normal loading stage: 800 N (seed, Section 2.1)."""
+"""Maximum load of the normal loading stage: 800 N (Han et al. 2022, Section 2.1)."""
 NORMAL_STROKE_M = NORMAL_LIMITS.max_position_m
-"""Travel of the normal loading stage: 25 mm (seed, Section 2.1)."""
+"""Travel of the normal loading stage: 25 mm (Han et al. 2022, Section 2.1)."""
 TANGENTIAL_STROKE_M = TANGENTIAL_LIMITS.max_position_m
-"""Travel of the tangential stage: 200 mm (seed, Section 2.1)."""
+"""Travel of the tangential stage: 200 mm (Han et al. 2022, Section 2.1)."""
 
 Backend = Literal["sim", "sim-wire", "real"]
 Transport = Literal["tcp", "rtu"]

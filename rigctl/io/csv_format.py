@@ -1,4 +1,4 @@
-"""The CSV exchange format of measured runs (``shared/spec/import-format.md``), read and written.
+"""The CSV exchange format of measured runs (docs/csv-format.md), read and written.
 
 A file is UTF-8, comma-separated: optional ``# key: value`` comment lines (kept as metadata, unknown
 keys included), one header row naming the columns, then one row of numbers per sample. The required

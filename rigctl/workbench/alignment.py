@@ -2,7 +2,7 @@
 
 Slip timing is sensitive: a model whose recurrence differs by 2 % is a whole cycle off after 50
 cycles, so events are never paired by index over a run, and time series are never compared point by
-point over many cycles (shared/spec/model.md). Pairing is local, within each drive segment (a stretch
+point over many cycles (docs/model.md). Pairing is local, within each drive segment (a stretch
 of constant stage velocity and load):
 
 * the first slip of a segment (the end of an initial stage, the first peak after a hold or a velocity

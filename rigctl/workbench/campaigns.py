@@ -1,7 +1,7 @@
 """Simulated campaigns: the protocols that reveal each effect, run on any model with sensor noise.
 
 A campaign is a list of runs (``rigctl.data.MeasuredRun``), like a folder of CSV files from the rig.
-The protocols are the ones of the paper and of shared/spec/model.md:
+The protocols are the paper's and those the effects reveal themselves in (docs/effects.md):
 
 ==================  ===========================================================================
 ``tlre``            one tangential-loading run from rest (paper Sec. 2.2): Fn = 300 N, 10 um/s
@@ -12,7 +12,7 @@ The protocols are the ones of the paper and of shared/spec/model.md:
 ==================  ===========================================================================
 
 ``PROTOCOL_FOR_EFFECT`` names, for each library effect, the protocol whose data show it (its
-signature, shared/spec/model.md); the hidden-effect tests and benchmark use it, and users can
+signature, docs/effects.md); the hidden-effect tests and benchmark use it, and users can
 generate the same campaigns to see what a protocol can tell apart (``duration_scale`` shortens or
 lengthens every segment).
 

@@ -1,7 +1,7 @@
 """Slip events found in a sampled tangential-force record.
 
 Why not single samples: the rig samples at 1024 Hz while a slip lasts under a millisecond and the
-specimen then rings at about 1 kHz (shared/spec/model.md), so the samples right after a slip alias
+specimen then rings at about 1 kHz (docs/model.md), so the samples right after a slip alias
 the ringing into a slow-looking, several-newton oscillation. A slip is therefore detected as a *drop*
 of the tangential force by more than a threshold within a short window (a few ms), and every drop that
 follows within the merge gap (the aliased ringing, even where it swings through zero) belongs to the

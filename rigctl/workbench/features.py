@@ -5,7 +5,7 @@ a measured record and on a simulated one. Levels are read from straight-line fit
 the stick on either side of the drop, evaluated at the drop time, never from single samples: the
 peak from the last part of the loading ramp, the trough as the *settled* post-slip level (the line
 through the stick after the ringing, extrapolated back to the drop). This makes them insensitive to
-sensor noise and to the aliased 1 kHz ringing right after a slip (shared/spec/model.md).
+sensor noise and to the aliased 1 kHz ringing right after a slip (docs/model.md).
 
 ========================  ======  ==========================================================
 feature                   unit    definition

@@ -18,7 +18,7 @@ every feature weighing the same whatever its number of events; E is about 1 when
 within the measurement's scatter. A measured slip the model does not make counts z = 5 per slip; a
 model slip in a segment where the measurement has none counts z = 3 per slip (in ``drop_N``).
 Nothing here compares time series point by point over many cycles: slip timing drifts, and such an
-RMSE would measure the phase drift, not the physics (shared/spec/model.md).
+RMSE would measure the phase drift, not the physics (docs/workbench.md, "Why not a pointwise RMSE").
 """
 
 from __future__ import annotations

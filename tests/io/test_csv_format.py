@@ -1,4 +1,4 @@
-"""The CSV exchange format (shared/spec/import-format.md): exact round trips, located errors."""
+"""The CSV exchange format (docs/csv-format.md): exact round trips, located errors."""
 
 from __future__ import annotations
 

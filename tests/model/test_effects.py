@@ -2,7 +2,7 @@
 
 Each signature test compares a model with the effect against the same model without it and checks the
 direction (and where the effect's equation predicts it, the size) of the change listed in
-shared/spec/model.md and in the effect's docstring. Drives are short (mostly 1e-4 m/s, a few seconds).
+docs/model.md and in the effect's docstring. Drives are short (mostly 1e-4 m/s, a few seconds).
 """
 
 from __future__ import annotations

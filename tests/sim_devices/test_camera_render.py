@@ -19,7 +19,7 @@ NOT_SLIDING = np.zeros(10, dtype=bool)
 
 
 def isum(frame: np.ndarray) -> float:
-    """Summed intensity of the image (seed, Section 2.2)."""
+    """Summed intensity of the image (Han et al. 2022, Section 2.2)."""
     return float(frame.astype(np.float64).sum())
 
 
@@ -51,7 +51,7 @@ def test_isum_rises_with_fn_nearly_linearly_below_300_N() -> None:
     fit = np.polyfit(fns[low], sums[low], 1)
     resid = sums[low] - np.polyval(fit, fns[low])
     r2 = 1.0 - resid.var() / sums[low].var()
-    assert r2 > 0.99  # seed Fig. 3a: approximately linear below 300 N
+    assert r2 > 0.99  # Han et al. 2022, Fig. 3a: approximately linear below 300 N
 
 
 def test_back_end_darkens_as_ft_rises_in_the_initial_stage() -> None:
