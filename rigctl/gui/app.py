@@ -35,7 +35,7 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
         return 1
     from PySide6.QtWidgets import QApplication
 
-    from rigctl.gui.run_panel import RunPanel
+    from rigctl.gui.main_window import MainWindow
 
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *argv])
@@ -43,12 +43,13 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
     from rigctl.runservice.wire import default_address
 
     try:
-        panel = RunPanel(config, backend, speed=speed, config_path=config_path,
-                         service=None if in_process else default_address())
+        window = MainWindow(config, backend, speed=speed, config_path=config_path,
+                            service=None if in_process else default_address())
     except ServiceStartError as exc:
         print(f"rigctl gui: error: {exc}", file=sys.stderr)
         return 1
-    panel.show()
+    panel = window.panel
+    window.show()
     try:
         rc = app.exec()
     finally:

@@ -66,6 +66,7 @@ SUBSCRIPTION_BLOCKS = 512
 (about 30 frames per second)."""
 DRAIN_INTERVAL_MS = 33
 ABORT_REASON = "aborted by the operator"
+ESTOP_REASON = "emergency stop by the operator"
 
 _RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
 _COLUMNS = ("name", "value", "unit", "description")
@@ -497,6 +498,31 @@ class RunPanel(QWidget):
             self._set_state("aborting")
             self._status("aborting: stopping and releasing the normal load…", _ORANGE)
 
+    def emergency_stop(self, reason: str = ESTOP_REASON) -> str:
+        """The drivers' latched emergency stop on both stages, from any state; aborts a run.
+
+        Returns what was done (for the status bar). In the run service the service does the same.
+        """
+        if self._client is not None:
+            sent = self._client.send("estop", reason)
+            text = ("EMERGENCY STOP sent to the run service" if sent
+                    else "EMERGENCY STOP could not be sent: the run service is gone")
+        else:
+            rig = self._given_rig if self._given_rig is not None else (
+                self.last_rig if self.busy else None)
+            if rig is None:
+                text = "EMERGENCY STOP: no rig is open (nothing is moving)"
+            else:
+                failures = trigger_emergency_stop(rig, reason)
+                text = "EMERGENCY STOP: stages stopped, motion refused until reset" + (
+                    f"; failed: {failures}" if failures else "")
+        if self._controls is not None and self.busy:
+            self._controls.abort(reason)
+            self._controls.resume()
+            self._set_state("aborting")
+        self._status(text, _RED)
+        return text
+
     def shutdown(self, timeout_s: float = 30.0) -> bool:
         """Abort any run and wait for the worker (safe state reached); True if it ended."""
         self.abort()
@@ -656,7 +682,7 @@ class RunPanel(QWidget):
         else:
             self._show_outcome(result.outcome)
         if self._close_when_done:
-            QTimer.singleShot(0, self.close)
+            QTimer.singleShot(0, self.window().close)  # the main window when embedded
 
     def _show_outcome(self, outcome: RunOutcome | None) -> None:
         if outcome is None:
@@ -729,6 +755,17 @@ class RunPanel(QWidget):
         self.progress_label.setText(
             f"step {i}/{n}: {desc}{paused}\nrig time {rig_elapsed:.0f} s of ~{total:.0f} s, "
             f"ETA {remaining:.0f} s{wall_eta}")
+
+
+def trigger_emergency_stop(rig: OpenRig, reason: str) -> str:
+    """Trigger the latched emergency stop of every registry the rig's stages are on; failures as text."""
+    registries: list[Any] = []
+    for stage in (rig.devices.tangential_stage, rig.devices.normal_stage):
+        reg = stage.emergency_stop_registry
+        if all(reg is not r for r in registries):
+            registries.append(reg)
+    failures = [f"{f.stage_name}: {f.error}" for reg in registries for f in reg.trigger(reason)]
+    return "; ".join(failures)
 
 
 def panel_state(panel: RunPanel) -> dict[str, Any]:

@@ -254,6 +254,8 @@ class RunService:
             self.abort(str(payload or "aborted by the operator"))
         elif kind == "estop":
             self.emergency_stop(str(payload or ESTOP_REASON))
+        elif kind == "reset_estop":
+            self.reset_emergency_stop()
         elif kind == "state":
             link.send("state", self.state)
         elif kind == "shutdown":
@@ -267,16 +269,24 @@ class RunService:
             self._controls.resume()
 
     def emergency_stop(self, reason: str) -> None:
-        """The drivers' emergency stop on both stages, from any state; aborts a run (safe state)."""
+        """The drivers' latched emergency stop (every registered stage stopped, motion refused until
+        reset), from any state; a run is aborted (its safe state cannot move while latched)."""
         problems = []
+        registries: list[Any] = []
         for stage in (self.rig.devices.tangential_stage, self.rig.devices.normal_stage):
-            try:
-                stage.emergency_stop()
-            except Exception as exc:
-                problems.append(f"{stage.name}: {exc}")
-        self.abort(f"{reason}")
+            reg = stage.emergency_stop_registry
+            if all(reg is not r for r in registries):
+                registries.append(reg)
+        for reg in registries:
+            problems += [f"{f.stage_name}: {f.error}" for f in reg.trigger(reason)]
+        self.abort(reason)
         self._log("error", f"EMERGENCY STOP ({reason})" + (f"; failed: {'; '.join(problems)}"
                                                           if problems else ""))
+
+    def reset_emergency_stop(self) -> None:
+        for stage in (self.rig.devices.tangential_stage, self.rig.devices.normal_stage):
+            stage.emergency_stop_registry.reset()
+        self._log("info", "emergency stop reset: motion commands accepted again")
 
     def start(self, job: JobSpec) -> None:
         with self._lock:
