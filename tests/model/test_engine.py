@@ -203,7 +203,7 @@ def test_parameter_table_has_units_and_bounds():
         assert r.unit and r.lower <= r.value <= r.upper and r.doc
 
 
-# --- regressions found by the simulated rig (each hung or returned garbage before the fix) ----------
+# --- cases found by the simulated rig: each must finish and return sound results -------------------
 
 
 def test_no_contact_and_zero_length_steps_return():

@@ -1,5 +1,5 @@
-"""The fast stick recurrence (rigctl/model/kernel/fast_stick.py) with the effects that used to leave
-it: sensor_dynamics, normal_coupling and rate_state aging. It must carry most samples, and agree
+"""The fast stick recurrence (rigctl/model/kernel/fast_stick.py) with the effects whose state it
+carries: sensor_dynamics, normal_coupling and rate_state aging. It must carry most samples, and agree
 with the general exact step to round-off."""
 
 from __future__ import annotations

@@ -110,7 +110,8 @@ def test_no_drive_force_above_the_static_threshold_after_a_slip(base, vs):
     """Between two stable slips Ft stays below mu_s Fn (the next slip starts where it reaches it).
 
     Tolerance 0.05 N: the drive force may exceed the interface force by M |X''| while residual
-    ringing lasts; before the fix it rang up to 5-7 N above mu_s Fn = 45 N after every slip.
+    ringing lasts; a passive re-stick rule is what keeps it there (docs/model.md, "Re-stick with
+    velocity-dependent friction").
     """
     res = run(base, 1e-4, 3.0, vs)
     ev = stable(res)

@@ -45,9 +45,9 @@ def test_a_load_change_starts_a_phase():
 
 
 def test_a_fast_repositioning_stroke_does_not_turn_the_slow_slide_into_holds():
-    """The TLRE returns the stage at 1.4 mm/s between its 1.3 um/s slides: holds used to be judged
-    against the fastest segment (0.2 % of 1.4 mm/s = 2.9 um/s), so the slide became a staircase of
-    'holds' up to 10 um off the measured stage and the model slipped at the wrong times."""
+    """The TLRE returns the stage at 1.4 mm/s between its 1.3 um/s slides: judged against the fastest
+    segment (0.2 % of 1.4 mm/s = 2.9 um/s), the slide would become a staircase of 'holds' up to
+    10 um off the measured stage and the model would slip at the wrong times."""
     fs = 1024.0
     t = np.arange(int(200 * fs)) / fs
     v = np.where(t < 150.0, 1.3e-6, np.where(t < 150.2, -1.4e-3, 0.0))
