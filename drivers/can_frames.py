@@ -17,11 +17,11 @@ from enum import IntEnum
 
 from drivers.errors import ProtocolError
 
-FORCE_BASE_ID = 0x180
-ANALOG_BASE_ID = 0x280
-COMMAND_BASE_ID = 0x600
-REPLY_BASE_ID = 0x580
-COUNTER_MODULUS = 1 << 16
+FORCE_BASE_ID = 0x180  # force frames on 0x180 + node (CANopen's TPDO1 range; docs/protocols.md)
+ANALOG_BASE_ID = 0x280  # analog frames on 0x280 + node (TPDO2 range)
+COMMAND_BASE_ID = 0x600  # commands to 0x600 + node (SDO request range)
+REPLY_BASE_ID = 0x580  # replies from 0x580 + node (SDO response range)
+COUNTER_MODULUS = 1 << 16  # the sample counter is a uint16 in each frame and wraps
 _DATA = struct.Struct("<Hhhh")
 
 

@@ -209,7 +209,13 @@ class LoadingStage(Device):
     Moves are non-blocking: ``move_absolute`` returns once the controller accepted the command; use
     :meth:`wait_for_motion` to wait. Each stage registers with an :class:`EmergencyStop` (the
     process-wide one unless given another) and refuses motion while it or any added interlock
-    (e.g. a :class:`~drivers.safety.ForceGuard`) objects.
+    (e.g. a :class:`~drivers.safety.ForceGuard`) objects. Usage (any stage, real or simulated)::
+
+        with ModbusStage(config) as stage:
+            stage.enable()
+            stage.move_absolute(0.010, 10e-6)      # to 10 mm at 10 um/s; beyond a limit: LimitError
+            stage.wait_for_motion(timeout_s=1200.0)
+            x_m = stage.position_m()
     """
 
     def __init__(
@@ -555,7 +561,13 @@ class ChannelMap:
 
 
 class Daq(Device):
-    """Synchronous sampling of Fx, Fy, Fz and three analog inputs at ``rate_hz``."""
+    """Synchronous sampling of Fx, Fy, Fz and three analog inputs at ``rate_hz``. Usage::
+
+        daq.start()
+        block = daq.read_block(1024, timeout_s=1.0)    # up to 1024 samples (one second at 1024 Hz)
+        fn_N = daq.channel_map.fn_N(block)             # forces and probes through the channel map
+        daq.stop()
+    """
 
     DEFAULT_RATE_HZ = 1024.0
 
@@ -673,7 +685,13 @@ class DisplacementProbe(Device):
     """A displacement probe read one value at a time or as a stream.
 
     A single reading beyond the range raises :class:`~drivers.errors.OverRangeError`; a streamed one
-    is ``+-inf`` (see :class:`ProbeSamples`).
+    is ``+-inf`` (see :class:`ProbeSamples`). Usage::
+
+        probe.zero()                                   # the current position reads 0 from now on
+        d_m = probe.read_m()
+        probe.start_stream(1000.0)
+        samples = probe.read_stream(1000, timeout_s=1.0)   # seq, values_m, host_ns
+        probe.stop_stream()
     """
 
     def __init__(self, name: str) -> None:
@@ -812,7 +830,11 @@ class Camera(Device):
     """A camera delivering timestamped, numbered frames; drops are detected and counted.
 
     Implementations number frames from 0 at each ``start()`` (``RawFrame.seq``) and stamp them
-    with ``time.monotonic_ns()``; the base class fills ``Frame.dropped_before``.
+    with ``time.monotonic_ns()``; the base class fills ``Frame.dropped_before``. Usage::
+
+        camera.start()
+        frame = camera.read_frame(timeout_s=1.0)       # frame.image, frame.seq, frame.dropped_before
+        camera.stop()
     """
 
     def __init__(self, name: str) -> None:

@@ -19,7 +19,7 @@ from drivers.interfaces import StageStatus
 WordOrder = Literal["high_first", "low_first"]
 WORD_ORDERS: tuple[WordOrder, ...] = ("high_first", "low_first")
 
-INT32_MIN = -(2**31)
+INT32_MIN = -(2**31)  # positions and velocities are INT32 in two registers
 INT32_MAX = 2**31 - 1
 
 

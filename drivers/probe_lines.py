@@ -14,16 +14,16 @@ import re
 
 from drivers.errors import OverRangeError, ProtocolError, rejected
 
-TERMINATOR = b"\r"
+TERMINATOR = b"\r"  # every line ends with CR (docs/protocols.md)
 MAX_LINE_BYTES = 80
 """A line longer than this without CR is garbage, not a reply."""
 
-UINT32_MAX = 2**32 - 1
+UINT32_MAX = 2**32 - 1  # stream sequence numbers are uint32 and wrap
 _VALUE = re.compile(r"[+-][0-9]{1,6}\.[0-9]{4}")
 _NUMBER = re.compile(r"[0-9]{1,6}(\.[0-9]{1,6})?")
 _SEQ = re.compile(r"[0-9]{1,10}")
 _CODE = re.compile(r"[0-9]{2}")
-COMMANDS = ("ID", "RG", "MS", "ZR", "ST", "SP")
+COMMANDS = ("ID", "RG", "MS", "ZR", "ST", "SP")  # the probe protocol's commands (docs/protocols.md)
 
 
 def format_command(command: str, *args: str) -> bytes:

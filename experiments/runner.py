@@ -40,7 +40,7 @@ from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 
 _log = logging.getLogger(__name__)
 
-SAFE_RETRACT_VELOCITY_M_S = 1e-3
+SAFE_RETRACT_VELOCITY_M_S = 1e-3  # safe-state retraction: half the normal stage's 2 mm/s limit
 
 
 @dataclass(frozen=True)

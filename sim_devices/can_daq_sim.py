@@ -50,8 +50,8 @@ from sim_devices.virtual_rig import VirtualRig
 
 _log = logging.getLogger(__name__)
 
-MAX_BATCH_SAMPLES = 512
-TARE_SAMPLES = 32
+MAX_BATCH_SAMPLES = 512  # samples sent per stream-loop turn: 0.5 s at 1024 Hz, bounds one burst
+TARE_SAMPLES = 32  # the tare averages the last 32 samples (31 ms at 1024 Hz) to average out noise
 
 
 @dataclass(frozen=True)

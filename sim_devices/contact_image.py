@@ -44,7 +44,7 @@ from sim_devices.rough_surface import SQ_BOSS_M, rough_surface
 BOSS_SIDE_M = 9e-3
 """Side of the PMMA boss (Han et al. 2022, Section 2.1, Fig. 1b)."""
 
-MAX_WIDTH_PX = 640
+MAX_WIDTH_PX = 640  # VGA at most: every frame is rendered from the contact state, in real time
 MAX_HEIGHT_PX = 480
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-HERTZ_EXPONENT = 1.5
+HERTZ_EXPONENT = 1.5  # Fn ~ approach^1.5 of a Hertzian contact (Johnson, Contact Mechanics, 1985)
 
 
 @dataclass(frozen=True)

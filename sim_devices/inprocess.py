@@ -42,8 +42,8 @@ from sim_devices.virtual_rig import StageControl, VirtualRig
 
 T = TypeVar("T")
 
-DEFAULT_TIMEOUT_S = 0.3
-STREAM_SILENCE_S = 0.5
+DEFAULT_TIMEOUT_S = 0.3  # a silent device times out like the wire drivers' default timeout_s
+STREAM_SILENCE_S = 0.5  # and a silent stream like their default stream_silence_s
 
 
 class InProcessStage(LoadingStage):

@@ -47,7 +47,7 @@ from sim_devices.virtual_rig import StageControl
 
 _log = logging.getLogger(__name__)
 
-LOOPBACK = "127.0.0.1"
+LOOPBACK = "127.0.0.1"  # the simulators listen on this host only, never on the network
 _GARBLED_FUNCTION_CODE = 0x42  # not a Modbus function code: the client cannot decode the reply
 
 

@@ -32,7 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from drivers.probe_lines import format_value
+from drivers.probe_lines import MAX_LINE_BYTES, TERMINATOR, format_value
 from sim_devices.faults import Faults, StuckReading
 from sim_devices.sample_ring import SamplesLostError
 from sim_devices.sensors import ProbeHead
@@ -42,10 +42,10 @@ from sim_devices.virtual_rig import VirtualRig
 
 _log = logging.getLogger(__name__)
 
-CR = b"\r"
-MAX_BACKLOG_BYTES = 1 << 16
-MAX_COMMAND_BYTES = 80
-MAX_BATCH_LINES = 256
+CR = TERMINATOR
+MAX_BACKLOG_BYTES = 1 << 16  # 64 KiB of unread output (seconds of a 1 kHz stream), then lines are lost
+MAX_COMMAND_BYTES = MAX_LINE_BYTES  # the protocol's longest line; more without CR is garbage
+MAX_BATCH_LINES = 256  # stream lines written per loop turn: bounds one burst
 
 
 class ProbeSim(SimService):

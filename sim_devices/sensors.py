@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-INT16_MIN = -32768
+INT16_MIN = -32768  # forces and analog inputs travel as int16 counts (docs/protocols.md)
 INT16_MAX = 32767
 
 FloatArray = NDArray[np.float64]

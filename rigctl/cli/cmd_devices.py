@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from rigctl.config import RigConfig
 
 CHOICES = ("sim", "sim-wire", "real")
-READ_TIMEOUT_S = 1.0
+READ_TIMEOUT_S = 1.0  # a DAQ that sends nothing for 1 s after starting its stream has failed
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
