@@ -9,20 +9,22 @@ service the service does this. Errors and what the e-stop did go to the status b
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import QMainWindow, QPushButton, QTabWidget, QVBoxLayout, QWidget
 
 from rigctl.config import RigConfig
+from rigctl.gui.devices_panel import DevicesPanel
 from rigctl.gui.run_panel import RunPanel
 from rigctl.rigs import OpenRig
+from rigctl.runservice.devices import jog, reset_emergency_stop, snapshot
 from rigctl.runservice.wire import Address
 
 ESTOP_KEY = "F12"
 
 
 class MainWindow(QMainWindow):
-    """Emergency stop + tabs (Protocols)."""
+    """Emergency stop + tabs (Devices, Protocols)."""
 
     def __init__(self, config: RigConfig, backend: str = "sim", *, rig: OpenRig | None = None,
                  speed: str = "1", service: Address | None = None, config_path: str | None = None,
@@ -42,8 +44,29 @@ class MainWindow(QMainWindow):
         self.estop_shortcut = QShortcut(QKeySequence(ESTOP_KEY), self)
         self.estop_shortcut.setContext(Qt.ShortcutContext.ApplicationShortcut)
         self.estop_shortcut.activated.connect(lambda: self.emergency_stop())
+        self._rig = rig
+        if self.panel.has_service:
+            self.devices = DevicesPanel(
+                lambda axis, d, v: self.panel.send_service("jog", (axis, d, v)),
+                lambda: self.panel.send_service("reset_estop"))
+            self.devices.set_source(f"backend {backend} in the run service (it owns the rig)")
+            self.panel.signals.devices.connect(self.devices.show_snapshot)
+            self.panel.signals.jog_result.connect(self.devices.show_jog_result)
+        elif rig is not None:
+            self.devices = DevicesPanel(self._local_jog, self._local_reset)
+            self.devices.set_source(f"backend {backend}, rig opened by this window")
+            self._poll = QTimer(self)
+            self._poll.setInterval(400)
+            self._poll.timeout.connect(self._local_snapshot)
+            self._poll.start()
+        else:
+            self.devices = DevicesPanel(None, None)
+            self.devices.set_available(False, "in-process mode: the rig is open only during a run; "
+                                       "start rigctl gui without --in-process for the Devices tab")
         self.tabs = QTabWidget()
+        self.tabs.addTab(self.devices, "Devices")
         self.tabs.addTab(self.panel, "Protocols")
+        self.tabs.setCurrentWidget(self.panel)
         central = QWidget()
         layout = QVBoxLayout(central)
         layout.addWidget(self.estop_button)
@@ -51,6 +74,30 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
         self.resize(1200, 760)
         self.statusBar().showMessage("ready")
+
+    # a rig held by this window (tests, embedding): the Devices tab reads and jogs it directly
+    def _local_snapshot(self) -> None:
+        if self._rig is not None:
+            self.devices.show_snapshot(snapshot(self._rig, busy=self.panel.busy))
+
+    def _local_jog(self, axis: str, delta_m: float, velocity_m_s: float) -> None:
+        assert self._rig is not None
+        if self.panel.busy:
+            self.devices.show_jog_result(False, "jog refused: a run is going")
+            return
+        try:
+            jog(self._rig, axis, delta_m, velocity_m_s)
+        except Exception as exc:
+            self.devices.show_jog_result(False, f"jog refused: {exc}")
+            return
+        self.devices.show_jog_result(True, f"{axis}: moving by {delta_m * 1e6:+.1f} um")
+
+    def _local_reset(self) -> None:
+        if self._rig is not None:
+            problems = reset_emergency_stop(self._rig)
+            self.devices.show_jog_result(not problems, "e-stop reset" + (
+                f"; alarm reset failed: {'; '.join(problems)}" if problems else ""))
+            self._local_snapshot()
 
     def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
         text = self.panel.emergency_stop(reason)

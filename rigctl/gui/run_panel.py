@@ -108,6 +108,8 @@ class _WorkerSignals(QObject):
     progress = Signal(int, int, str, float, float, float)  # i, n, step, elapsed, eta, device t
     done = Signal(object)  # _Result
     service_log = Signal(str, str)  # level, text (run service)
+    devices = Signal(object)  # RigSnapshot from the run service
+    jog_result = Signal(bool, str)
     service_lost = Signal()
 
 
@@ -399,6 +401,10 @@ class RunPanel(QWidget):
             self._sig.progress.emit(*payload)
         elif kind == "done":
             self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome))
+        elif kind == "devices":
+            self._sig.devices.emit(payload)
+        elif kind == "jog_result":
+            self._sig.jog_result.emit(*payload)
         elif kind == "log":
             self._sig.service_log.emit(*payload)
         elif kind == "lost":
@@ -533,6 +539,19 @@ class RunPanel(QWidget):
             QApplication.processEvents()  # the outcome arrives as a queued signal
             time.sleep(0.02)
         return not self.busy
+
+    @property
+    def signals(self) -> _WorkerSignals:
+        """The panel's signals (the main window connects ``devices`` and ``jog_result``)."""
+        return self._sig
+
+    @property
+    def has_service(self) -> bool:
+        return self._client is not None
+
+    def send_service(self, kind: str, payload: Any = None) -> bool:
+        """A command to the run service (False without one, or if it is gone)."""
+        return self._client is not None and self._client.send(kind, payload)
 
     def disconnect_service(self) -> None:
         """Close the connection to the run service (it stops by itself once idle with no client)."""

@@ -44,6 +44,7 @@ from rigctl.acquisition import Acquisition
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.rigs import OpenRig, open_rig
+from rigctl.runservice.devices import RigSnapshot, jog, reset_emergency_stop, snapshot
 from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
 from rigctl.storage.layout import RunDescription
 
@@ -52,6 +53,8 @@ _log = logging.getLogger("rigctl.runservice")
 LIVE_QUEUE_MAX = 256
 """Live-data messages a client may have waiting before its oldest are dropped."""
 ESTOP_REASON = "emergency stop"
+SNAPSHOT_INTERVAL_S = 0.4
+"""Device status sent to clients this often (the Devices tab)."""
 FIRST_CLIENT_WAIT_S = 60.0
 """A new service waits at least this long for its first client before it stops as idle."""
 
@@ -145,6 +148,7 @@ class RunService:
         self._idle_since = time.monotonic()
         self._listener: Listener | None = None
         self._ever_client = False
+        self._last_snapshot_s = 0.0
 
     # ------------------------------------------------------------------ lifecycle
     def serve(self) -> None:
@@ -184,6 +188,9 @@ class RunService:
         now = time.monotonic()
         with self._lock:
             has_clients = bool(self._clients)
+        if has_clients and now - self._last_snapshot_s >= SNAPSHOT_INTERVAL_S:
+            self._last_snapshot_s = now
+            self._broadcast("devices", self.devices_snapshot())
         if has_clients:
             self._last_client_s = now
             self._ever_client = True
@@ -254,6 +261,8 @@ class RunService:
             self.abort(str(payload or "aborted by the operator"))
         elif kind == "estop":
             self.emergency_stop(str(payload or ESTOP_REASON))
+        elif kind == "jog":
+            link.send("jog_result", self.jog(*payload))
         elif kind == "reset_estop":
             self.reset_emergency_stop()
         elif kind == "state":
@@ -283,10 +292,29 @@ class RunService:
         self._log("error", f"EMERGENCY STOP ({reason})" + (f"; failed: {'; '.join(problems)}"
                                                           if problems else ""))
 
+    def devices_snapshot(self) -> RigSnapshot:
+        readings: dict[str, float] = {}
+        runner = self._runner
+        if self.state.busy and runner is not None and runner.ctx is not None:
+            with contextlib.suppress(Exception):
+                readings = {k: float(v) for k, v in runner.ctx.acq.latest().items()}
+        return snapshot(self.rig, readings, self.state.busy)
+
+    def jog(self, axis: str, delta_m: float, velocity_m_s: float) -> tuple[bool, str]:
+        """A jog between runs; (False, why) if refused (a run going, a limit, the e-stop)."""
+        if self.state.busy:
+            return False, "jog refused: a run is going (pause does not free the stages)"
+        try:
+            jog(self.rig, axis, delta_m, velocity_m_s)
+        except Exception as exc:
+            return False, f"jog refused: {exc}"
+        return True, f"{axis}: moving by {delta_m * 1e6:+.1f} um at {velocity_m_s * 1e6:.1f} um/s"
+
     def reset_emergency_stop(self) -> None:
-        for stage in (self.rig.devices.tangential_stage, self.rig.devices.normal_stage):
-            stage.emergency_stop_registry.reset()
-        self._log("info", "emergency stop reset: motion commands accepted again")
+        problems = reset_emergency_stop(self.rig)
+        self._log("warning" if problems else "info",
+                  "emergency stop reset: motion commands accepted again"
+                  + (f"; alarm reset failed: {'; '.join(problems)}" if problems else ""))
 
     def start(self, job: JobSpec) -> None:
         with self._lock:

@@ -105,6 +105,25 @@ def test_estop_through_the_run_service_aborts_the_run(tmp_path):
                 break
         assert payload.kind == "run" and payload.outcome.status == "aborted"
         assert "emergency stop" in payload.outcome.error
+
+        def next_of(kind: str, pred=lambda p: True):
+            end = time.monotonic() + 30
+            while time.monotonic() < end:
+                k, p = inbox.get(timeout=30)
+                if k == kind and pred(p):
+                    return p
+            raise AssertionError(f"no {kind} message")
+
+        snap = next_of("devices")  # the Devices tab's view through the service
+        assert snap.estop and "emergency stop" in snap.estop and not snap.busy
+        client.send("jog", ("tangential", 5e-6, 1e-5))
+        ok, text = next_of("jog_result")
+        assert not ok and "emergency" in text.lower()
+        client.send("reset_estop")
+        next_of("devices", lambda p: p.estop is None)
+        client.send("jog", ("tangential", 5e-6, 1e-5))
+        ok, text = next_of("jog_result")
+        assert ok, text
         client.send("shutdown")
         client.close()
         proc.wait(60)
