@@ -28,6 +28,7 @@ from rigctl.workbench.feature_info import (
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
 from rigctl.workbench.probe_range import probe_range
+from rigctl.workbench.rig_description import RigDescription, campaign_description
 from rigctl.workbench.signals import FloatArray
 
 BLOCK_SIZE = 6
@@ -52,6 +53,10 @@ class PreparedRun:
     """Per protocol phase: irregular stick-slip, compared by its mean (one block)."""
     block_irregular: tuple[bool, ...] = ()
     """Per block: the later slips of an irregular phase (empty: no block is)."""
+    delta_measured: bool = True
+    """False when the record has no displacement probes (:mod:`rigctl.workbench.probe_range`)."""
+    lead_in_s: float = 0.0
+    """Drive time the model runs before the record's first sample (:func:`lead_in`)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,8 @@ class Dataset:
     event_sigmas: tuple[dict[str, FloatArray], ...] = field(default_factory=tuple)
     """Per run and feature: the scatter each event is measured in (:func:`event_scatter`; fixed
     once for the campaign, read by every evaluation)."""
+    rig: RigDescription = field(default_factory=RigDescription)
+    """What the data say about their rig (:mod:`rigctl.workbench.rig_description`)."""
 
     def event_sigma(self, i_run: int, name: str) -> FloatArray:
         """The scatter each event of run ``i_run`` is measured in (``sigma`` where the dataset was
@@ -118,6 +125,33 @@ def _settle_time(t: FloatArray, slips_end: np.ndarray, slips_peak: np.ndarray) -
     return float(np.clip(ring + 0.02, 0.03, 0.3))
 
 
+LOADED_START_FRACTION = 0.3
+"""A record whose first samples carry more than this fraction of its typical peak |Ft| starts
+loaded: it was cut from a running slide (no initial stage from rest in it)."""
+LEAD_IN_STICKS = 5.0
+"""Stick cycles the model runs before such a record starts, to reach its own stick-slip cycle."""
+
+
+def lead_in(ft_N: FloatArray, prof: DriveProfile, events: EventTable, rate_hz: float) -> float:
+    """Seconds of drive to run the model before t = 0: 0 for a record that starts from rest (the
+    model starts unloaded, as the specimen did); for one that starts loaded, LEAD_IN_STICKS
+    median stick times at the first segment's velocity, so that the model enters the record in
+    its own stick-slip cycle instead of loading from rest where the data show a running slide."""
+    if events.n == 0 or prof.velocity_m_per_s.shape[0] == 0 or prof.velocity_m_per_s[0] == 0.0:
+        return 0.0
+    peaks = np.abs(events.features["peak_N"])
+    peaks = peaks[np.isfinite(peaks)]
+    f0 = float(np.median(np.abs(ft_N[: max(3, min(10, ft_N.shape[0]))])))
+    if peaks.size == 0 or f0 <= LOADED_START_FRACTION * float(np.median(peaks)):
+        return 0.0
+    stick = events.features["stick_s"]
+    stick = stick[np.isfinite(stick) & (stick > 0)]
+    t_first = float(events.t_drop_s[0]) if events.n else 0.0
+    typical = float(np.median(stick)) if stick.size else max(t_first, 1.0 / rate_hz)
+    n = math.ceil(LEAD_IN_STICKS * typical * rate_hz)
+    return max(n, 10) / rate_hz
+
+
 def check_run(run: MeasuredRun) -> None:
     """Raise DataError naming the file for data the workbench cannot use."""
     run.validate()
@@ -128,12 +162,13 @@ def check_run(run: MeasuredRun) -> None:
         )
 
 
-def prepare_run(run: MeasuredRun, name: str) -> PreparedRun:
+def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None) -> PreparedRun:
+    """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes."""
     check_run(run)
     prof = drive_profile(run)
     t = run.t_s - run.t_s[0]
     det = DetectionSettings.from_signal(run.ft_N)
-    probes = probe_range(run)
+    probes = probe_range(run, delta_measured)
     valid = probes.delta_valid if probes.any_over else None
     slips = detect_slips(t, run.ft_N, run.delta_m, det, valid)
     read = ReadSettings(det, _settle_time(t, slips.i_end, slips.i_peak))
@@ -141,6 +176,7 @@ def prepare_run(run: MeasuredRun, name: str) -> PreparedRun:
         run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips, valid
     )
     return PreparedRun(
+        lead_in_s=lead_in(run.ft_N, prof, events, run.sample_rate_hz),
         name=name,
         sample_rate_hz=run.sample_rate_hz,
         n_samples=run.n_samples,
@@ -149,6 +185,7 @@ def prepare_run(run: MeasuredRun, name: str) -> PreparedRun:
         events=events,
         blocks=_blocks(events),
         notes=tuple(probes.notes(name)),
+        delta_measured=probes.delta_measured,
     )
 
 
@@ -322,10 +359,11 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     if not runs:
         raise DataError("no runs given")
     prepared: list[PreparedRun] = []
-    notes: list[str] = []
+    rig = campaign_description(runs)
+    notes: list[str] = rig.notes()
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
-        pr = prepare_run(run, name)
+        pr = prepare_run(run, name, rig.delta_measured)
         notes.extend(pr.notes)
         if pr.events.n == 0:
             notes.append(f"{name}: no slip detected (stick-slip absent or below the noise)")
@@ -349,7 +387,7 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
                 f"{', '.join(str(int(k) + 1) for k in np.flatnonzero(irr))}: compared by the "
                 "phase mean, not slip by slip")
     per_event = tuple(event_scatter(r, phase_scatter(r, sigma, r.irregular)) for r in prepared)
-    return Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event)
+    return Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event, rig)
 
 
 def protocols_present(dataset: Dataset) -> list[str]:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from rigctl.model import Drive, ModelSpec, SimResult, Simulator
 from rigctl.workbench.dataset import Dataset, PreparedRun
 from rigctl.workbench.features import EventTable, extract_events
@@ -17,13 +19,28 @@ from rigctl.workbench.model_choice import ModelChoice
 
 
 def model_drive(run: PreparedRun) -> Drive:
+    """The run's drive; with a lead-in (:func:`rigctl.workbench.dataset.lead_in`) the first
+    segment is extended back by ``run.lead_in_s`` and the times shifted to start at 0."""
     d = run.drive
-    return Drive(d.t_s, d.x_stage_m, d.fn_N)
+    if run.lead_in_s <= 0.0:
+        return Drive(d.t_s, d.x_stage_m, d.fn_N)
+    v0 = float(d.velocity_m_per_s[0])
+    t = np.concatenate([[0.0], d.t_s + run.lead_in_s])
+    x = np.concatenate([[d.x_stage_m[0] - v0 * run.lead_in_s], d.x_stage_m])
+    f = np.concatenate([[d.fn_N[0]], d.fn_N])
+    return Drive(t, x, f)
 
 
 def simulate_run(spec: ModelSpec, run: PreparedRun) -> SimResult:
+    """The model on the run's drive, sampled at the run's rate on the run's time base."""
     sim = Simulator(spec, sample_rate_hz=run.sample_rate_hz)
-    return sim.run(model_drive(run), record_elements=False)
+    res = sim.run(model_drive(run), record_elements=False)
+    if run.lead_in_s <= 0.0:
+        return res
+    i0 = round(run.lead_in_s * run.sample_rate_hz)
+    out = res.slice(i0, res.n_samples)
+    out.t_s = out.t_s - out.t_s[0]
+    return out
 
 
 def read_result(res: SimResult, run: PreparedRun) -> EventTable:

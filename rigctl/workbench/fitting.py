@@ -28,6 +28,7 @@ import numpy as np
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
+from rigctl.workbench.data_scale import base_start, measure_scale
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.guess import initial_guess
@@ -42,6 +43,7 @@ from rigctl.workbench.identify import (
     physically_valid,
 )
 from rigctl.workbench.model_choice import ModelChoice, effect_class
+from rigctl.workbench.rig_description import check_names
 
 BASELINE_MAX_NFEV = 24
 CANDIDATE_MAX_NFEV = 10
@@ -56,19 +58,73 @@ def identify_model(
     dataset: Dataset, choice: ModelChoice, with_uncertainty: bool = True,
     max_nfev: int = BASELINE_MAX_NFEV,
 ) -> FitResult:
-    """Fit all identifiable parameters of ``choice`` on ``dataset``."""
-    free = free_params(choice)
+    """Fit all identifiable parameters of ``choice`` on ``dataset``.
+
+    The fit starts from the best of three points (by the event-aware error): the model's current
+    values, the same carried to the data's own scale (:mod:`rigctl.workbench.data_scale`: a record
+    of another rig lies decades from the preset) and the ratio guess of
+    :mod:`rigctl.workbench.guess` from the better of those two. Parameters the rig description
+    fixes are set and left out of the fit; those it bounds are fitted inside its range.
+    """
+    rig = dataset.rig
+    check_names(rig, [p.name for p in choice.parameter_table()])
+    if rig.fixed:
+        choice = choice.with_values(rig.fixed)
+    free = free_params(choice, rig=rig)
     fns = fn_range(dataset)
     if not physically_valid(choice, fns):
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
-    guess = initial_guess(dataset, choice, free)
-    e_now = evaluate(dataset, choice).score.error
+    best_choice, e_best = choice, _error_or_inf(dataset, choice, fns)
+    scaled = data_scaled(dataset, choice, free)
+    if scaled is not None:
+        e_scaled = _error_or_inf(dataset, scaled, fns)
+        if e_scaled < e_best:
+            best_choice, e_best = scaled, e_scaled
     start: dict[str, float] = {}
-    if physically_valid(choice.with_values(guess), fns):
-        e_guess = evaluate(dataset, choice.with_values(guess)).score.error
-        start = guess if e_guess <= e_now else {}
-    return fit(dataset, choice, free, start=start, max_nfev=max_nfev,
+    try:
+        guess = initial_guess(dataset, best_choice, free)
+    except SimulationError:
+        guess = {}
+    if guess and _error_or_inf(dataset, best_choice.with_values(guess), fns) <= e_best:
+        start = guess
+    return fit(dataset, best_choice, free, start=start, max_nfev=max_nfev,
                with_uncertainty=with_uncertainty)
+
+
+def _error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:
+    """The event-aware error of ``choice``; inf when it is not valid or cannot be run."""
+    if not physically_valid(choice, fns):
+        return float("inf")
+    try:
+        return float(evaluate(dataset, choice).score.error)
+    except SimulationError:
+        return float("inf")
+
+
+def data_scaled(dataset: Dataset, choice: ModelChoice,
+                free: list[FreeParam]) -> ModelChoice | None:
+    """``choice`` with its base values at the data's scale (None when the events do not show it).
+
+    Fitted parameters take the data-scale values within their (rig-description) bounds; the fixed
+    ones keep what the rig description states."""
+    current = {p.name: p.value for p in choice.parameter_table()}
+    scale = measure_scale((r.events for r in dataset.runs),
+                          delta_measured=any(r.delta_measured for r in dataset.runs))
+    values = base_start(scale, current, dataset.rig.fixed)
+    if not values:
+        return None
+    bounds = {fp.name: (fp.lower, fp.upper) for fp in free}
+    table = {p.name: p for p in choice.parameter_table()}
+    out = {}
+    for k, v in values.items():
+        lo, hi = bounds.get(k, (table[k].lower, table[k].upper))
+        out[k] = float(min(max(v, lo), hi))
+    if out.get("mu_k", 0.0) >= out.get("mu_s", 1.0):
+        return None
+    try:
+        return choice.with_values(out)
+    except ParameterError:
+        return None
 
 
 def _scan(

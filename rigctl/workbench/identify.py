@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -33,6 +33,7 @@ from rigctl.model import ParameterError, ParamInfo
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.rig_description import RigDescription
 from rigctl.workbench.signals import FloatArray
 
 FD_STEP = 0.05
@@ -41,6 +42,10 @@ FD_STEP_MAX = 0.3
 FD_CHANGE_MIN = 2.0
 FD_CHANGE_MAX = 20.0
 FAILED_RESIDUAL = 1e3
+"""Norm of the residual vector of a point that cannot be evaluated (invalid or failed), at least;
+:class:`Objective` raises it to FAILED_FACTOR times the first valid norm, so that on data far from
+the model (a record of another rig) a failed point never looks better than a poor valid one."""
+FAILED_FACTOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -116,6 +121,8 @@ class Objective:
         self._cache: dict[bytes, FloatArray] = {}
         self.best_u: FloatArray | None = None
         self.best_cost = math.inf
+        self.failed_norm = FAILED_RESIDUAL
+        self._seen_valid = False
 
     def values(self, u: FloatArray) -> dict[str, float]:
         return {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, u, strict=True)}
@@ -134,11 +141,15 @@ class Objective:
             vec = ev.score.vector
             if not np.all(np.isfinite(vec)):
                 vec = np.where(np.isfinite(vec), vec, FAILED_RESIDUAL)
+            elif not self._seen_valid:
+                self._seen_valid = True
+                self.failed_norm = max(FAILED_RESIDUAL,
+                                       FAILED_FACTOR * float(np.linalg.norm(vec)))
         except ParameterError:
             vec = None
         if vec is None:
             n = self._length()
-            vec = np.full(n, FAILED_RESIDUAL / math.sqrt(max(n, 1)))
+            vec = np.full(n, self.failed_norm / math.sqrt(max(n, 1)))
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[key] = vec
@@ -233,8 +244,10 @@ class HybridJacobian:
         return J
 
 
-def free_params(choice: ModelChoice, names: Sequence[str] | None = None) -> list[FreeParam]:
-    """The parameters to fit: ``names``, or every parameter marked ``identify``."""
+def free_params(choice: ModelChoice, names: Sequence[str] | None = None,
+                rig: RigDescription | None = None) -> list[FreeParam]:
+    """The parameters to fit: ``names``, or every parameter marked ``identify``; a rig description
+    (:mod:`rigctl.workbench.rig_description`) removes those it fixes and narrows those it bounds."""
     table = {p.name: p for p in choice.parameter_table()}
     if names is None:
         names = [p.name for p in table.values() if p.identify]
@@ -242,7 +255,17 @@ def free_params(choice: ModelChoice, names: Sequence[str] | None = None) -> list
     for name in names:
         if name not in table:
             raise ParameterError(f"cannot fit '{name}': not a parameter of {choice.label()}")
-        out.append(FreeParam.from_info(table[name]))
+        if rig is not None and name in rig.fixed:
+            continue
+        fp = FreeParam.from_info(table[name])
+        if rig is not None and name in rig.bounds:
+            lo, hi = rig.bounds[name]
+            lo, hi = max(lo, fp.lower), min(hi, fp.upper)
+            if not lo < hi:
+                raise ParameterError(f"rig description bounds of '{name}' lie outside its "
+                                     f"range [{fp.lower:g}, {fp.upper:g}]")
+            fp = replace(fp, lower=lo, upper=hi)
+        out.append(fp)
     return out
 
 

@@ -13,6 +13,11 @@ meaningless, while Ft, Fn and the stage are still valid. Over range is found
   not saturated, the interface does not move either).
 
 Both are combined. The result is a per-sample mask of valid delta samples and a note per probe.
+
+A probe column that never changes over the whole record (all zero, or one constant: a rig without
+displacement probes, a CSV that fills the column) was **not measured**; it is not over range. When no
+probe column varies, delta was not measured at all: every sample is invalid for delta, the delta
+features (K(i), slip distance, lag, the initial-stage curve) are left out and the note says so.
 """
 
 from __future__ import annotations
@@ -42,12 +47,25 @@ class ProbeRange:
     """Fraction of the record each over-range probe spent over range."""
     source: dict[str, str]
     """How it was found per probe: 'events', 'saturation' or 'events + saturation'."""
+    not_measured: tuple[str, ...] = ()
+    """Probe columns constant over the whole record (no probe)."""
+    why_not: str = ""
+    """Why delta counts as not measured (for the note)."""
 
     @property
     def any_over(self) -> bool:
         return not bool(self.delta_valid.all())
 
+    @property
+    def delta_measured(self) -> bool:
+        """False when no probe column varies: the record holds no delta."""
+        return len(self.not_measured) < len(PROBES)
+
     def notes(self, name: str) -> list[str]:
+        if not self.delta_measured:
+            why = self.why_not or f"{' and '.join(self.not_measured)} constant"
+            return [f"no delta measured in {name} ({why}): "
+                    "delta features (K(i), slip distance, lag, initial-stage curve) left out"]
         return [
             f"{probe.split('_')[0].upper()} over range for {100.0 * frac:.0f} % of {name} "
             f"({self.source[probe]}): delta features excluded there"
@@ -69,6 +87,11 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     m = np.concatenate([[False], mask, [False]]).astype(np.int8)
     edges = np.flatnonzero(np.diff(m))
     return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)]
+
+
+def not_measured(x: FloatArray) -> bool:
+    """The column holds one value over the whole record (zero-filled, or a disconnected probe)."""
+    return x.shape[0] > 0 and bool(np.all(x == x[0]))
 
 
 def saturated(x: FloatArray, t: FloatArray, x_stage: FloatArray) -> np.ndarray:
@@ -121,14 +144,22 @@ def _event_mask(run: MeasuredRun) -> dict[str, np.ndarray]:
     return out
 
 
-def probe_range(run: MeasuredRun) -> ProbeRange:
-    """Where each probe of ``run`` was over range and the resulting valid-delta mask."""
+def probe_range(run: MeasuredRun, delta_measured: bool | None = None) -> ProbeRange:
+    """Where each probe of ``run`` was over range and the resulting valid-delta mask
+    (``delta_measured=False``: the record states it has no probes)."""
     n = run.n_samples
+    if delta_measured is False:
+        return ProbeRange(np.zeros(n, dtype=bool), {}, {}, PROBES, "rig.delta_measured: no")
     from_events = _event_mask(run)
     valid = np.ones(n, dtype=bool)
     frac: dict[str, float] = {}
     source: dict[str, str] = {}
+    constant = tuple(p for p in PROBES if not_measured(getattr(run, p)))
+    if len(constant) == len(PROBES):
+        return ProbeRange(np.zeros(n, dtype=bool), {}, {}, constant)
     for probe in PROBES:
+        if probe in constant:
+            continue
         sat = saturated(getattr(run, probe), run.t_s, run.x_stage_m)
         ev = from_events.get(probe)
         over = sat if ev is None else (sat | ev)
@@ -139,4 +170,4 @@ def probe_range(run: MeasuredRun) -> ProbeRange:
         kinds = [k for k, m in (("events", ev), ("saturation", sat))
                  if m is not None and m.any()]
         source[probe] = " + ".join(kinds)
-    return ProbeRange(valid, frac, source)
+    return ProbeRange(valid, frac, source, constant)

@@ -23,7 +23,7 @@ class LoadDependentFriction(Effect):
     params = (
         ParamSpec("alpha_s", 0.3, -2.0, 2.0, "-", "exponent on mu_s", off=0.0),
         ParamSpec("alpha_k", 0.3, -2.0, 2.0, "-", "exponent on mu_k", off=0.0),
-        ParamSpec("fn_ref_N", 300.0, 1.0, 800.0, "N", "reference normal force",
+        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force",
                   identify=False, off=300.0),
     )
 

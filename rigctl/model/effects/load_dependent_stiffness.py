@@ -23,7 +23,7 @@ class LoadDependentStiffness(Effect):
     params = (
         ParamSpec("beta0", 0.5, -1.0, 2.0, "-", "exponent on Kt0 (initial stage)", off=0.0),
         ParamSpec("beta_s", 0.3, -1.0, 2.0, "-", "exponent on Kts (stable stage)", off=0.0),
-        ParamSpec("fn_ref_N", 300.0, 1.0, 800.0, "N", "reference normal force",
+        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force",
                   identify=False, off=300.0),
     )
 

@@ -34,7 +34,7 @@ class StressEvolution(Effect):
     signature = "initial-stage Ft-delta curve bends while the model's stays straight"
     reveal_protocol = "TLRE: a tangential run from rest, analysing the initial stage"
     params = (
-        ParamSpec("kt0_N_per_m", 1.5e6, 1e3, 1e9, "N/m",
+        ParamSpec("kt0_N_per_m", 1.5e6, 1e-3, 1e13, "N/m",
                   "interface stiffness of the initial stage Kt0 (project default; paper gives none)"),
         ParamSpec("mu_smax", 0.2, 1e-3, 3.0, "-",
                   "maximum static friction coefficient of the initial stage (paper Sec. 5.3)"),

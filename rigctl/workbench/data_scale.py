@@ -1,0 +1,243 @@
+"""The data's own scale: starting values of a model of another rig, read from the record alone.
+
+The model's preset is this rig (paper Sec. 5.3: Fn = 300 N, K0 = 1.475e6 N/m, M = 0.048 kg). A
+record of another rig (a 0.3 N spring-slider with a 168 N/m spring, a 5 N tribometer, a rock biax
+at MPa) lies decades away, and a local fit started at the preset never leaves it. So before any fit
+the base parameters are set from what the measured events show directly (no simulation):
+
+* **friction levels** from the stable peaks and troughs over Fn. A slip from rest at mu_s Fn with
+  little damping overshoots below the kinetic level as far as it started above it (a released
+  spring-mass on Coulomb friction: trough = 2 mu_k Fn - mu_s Fn), so
+  ``mu_s = peak / Fn`` and ``mu_k = (peak + trough) / (2 Fn)``; the initial-stage threshold
+  ``mu_smax`` from the first peak.
+* **stiffness** from the stick: the loading rate against the drive, ``K_eff = dFt/dx_stage``
+  (= rate / drive velocity), is the series stiffness ``1 / (1/K0 + 1/Kts)`` of drive and interface
+  (paper Sec. 5.2: both carry Ft in stick). Where delta is measured, dFt/d(delta) in stick is Kts
+  and K0 follows; without delta the two are not separable and keep the preset's ratio Kts/K0 (the
+  fit reports them as not determined).
+* **mass and damping** from a rig description (``m_kg``, ``c0_N_s_per_m``) where given; else the mass
+  keeps the preset's slip frequency sqrt(K0/M) (during a global slip every element slides and the
+  mass swings on the drive spring alone: 880 Hz, a slip over in about half a millisecond, under
+  one sample at most rates) and C0 the preset's damping ratio C0 / (2 sqrt(K0 M)) (0.75 %).
+
+Effect parameters with a unit are carried to the data's scale by the ratio of the same quantity
+(:func:`scale_effect_values`): reference loads (``N``) to the data's Fn, velocities (``m/s``) by the
+drive velocity, lengths (``m``) by the stick slip distance, times (``s``) by the stick time,
+stiffnesses (``N/m``) by K0, damping (``N s/m``) by sqrt(K M). A ratio within [1/3, 3] of the preset
+is left alone: there the preset's own defaults are the better prior.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigctl.model.params import BASE_PARAMS
+from rigctl.workbench.features import EventTable
+
+PRESET = {s.name: float(s.default) for s in BASE_PARAMS}
+PRESET_FN_N = 300.0
+"""The preset's normal force (paper Sec. 5.3)."""
+PRESET_V_M_PER_S = 1e-5
+"""The preset's drive velocity (paper Sec. 5.3)."""
+PRESET_MU_SMAX = 0.2
+PRESET_KT0_N_PER_M = 1.5e6
+NEAR_PRESET = 3.0
+"""A data scale within this factor of the preset's leaves the preset's effect defaults alone."""
+RESOLVED_FRACTION = 0.5
+"""Share of stick windows with a positive delta-on-Ft slope needed to read dFt/d(delta)."""
+STIFF_CAP = 1e3
+"""An interface stiffer than this many times the series stiffness is taken as this (rigid)."""
+MIN_GAP = 1e-3
+"""mu_k stays at least this fraction below mu_s (the model needs mu_k < mu_s to stick-slip)."""
+
+
+def _finite(values: Iterable[np.ndarray]) -> np.ndarray:
+    arrs = [np.asarray(v, dtype=float).ravel() for v in values]
+    allv = np.concatenate(arrs) if arrs else np.zeros(0)
+    return allv[np.isfinite(allv)]
+
+
+def _median(values: Iterable[np.ndarray]) -> float:
+    v = _finite(values)
+    return float(np.median(v)) if v.size else math.nan
+
+
+@dataclass(frozen=True)
+class DataScale:
+    """What the measured events show directly (SI units; NaN where the data do not show it)."""
+
+    fn_N: float
+    """Median normal force at the slips."""
+    v_m_per_s: float
+    """Median drive speed at the slips."""
+    mu_peak: float
+    """Median stable-stage peak / Fn."""
+    mu_trough: float
+    """Median stable-stage trough / Fn."""
+    mu_first: float
+    """Median initial-stage peak / Fn (NaN without an initial stage)."""
+    k_eff_N_per_m: float
+    """Median stick loading stiffness dFt/dx_stage (stable stage)."""
+    k_stick_N_per_m: float
+    """Median dFt/d(delta) in stick (NaN where delta was not measured or does not resolve it)."""
+    stick_s: float
+    """Median stick duration."""
+    delta_measured: bool = True
+    """False when no run of the campaign has a displacement probe."""
+
+    @property
+    def usable(self) -> bool:
+        return all(math.isfinite(v) and v > 0 for v in (self.fn_N, self.mu_peak, self.k_eff_N_per_m))
+
+
+def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True) -> DataScale:
+    """The :class:`DataScale` of the measured events of a campaign.
+
+    dFt/d(delta) is read only where delta resolves the interface's give in stick: the stick
+    windows' delta-on-Ft slopes (compliances) must come out positive in at least
+    RESOLVED_FRACTION of the sticks; where delta barely moves in stick its noise gives either
+    sign, the interface is rigid at the probe's resolution and ``k_stick_N_per_m`` is +inf.
+    """
+    tabs = list(tables)
+
+    def col(name: str, stable: bool | None, per_fn: bool = False) -> list[np.ndarray]:
+        out = []
+        for ev in tabs:
+            sel = np.ones(ev.n, dtype=bool) if stable is None else (ev.stage == (1 if stable else 0))
+            v = np.abs(ev.features[name][sel])
+            if per_fn:
+                fn = ev.covariates["fn_N"][sel]
+                v = v / np.where(fn > 0, fn, np.nan)
+            out.append(v)
+        return out
+
+    rates = []
+    for ev in tabs:
+        v = np.abs(ev.covariates["v_drive_m_per_s"])
+        ok = (ev.stage == 1) & (v > 0)
+        rates.append(np.abs(ev.features["rate_N_per_s"][ok]) / v[ok])
+    k_stick = math.nan
+    if delta_measured:
+        n_rate = sum(int(np.isfinite(ev.features["rate_N_per_s"][ev.stage == 1]).sum())
+                     for ev in tabs)
+        n_k = sum(int(np.isfinite(ev.features["k_stick_N_per_m"][ev.stage == 1]).sum())
+                  for ev in tabs)
+        if n_rate and n_k >= RESOLVED_FRACTION * n_rate:
+            k_stick = _median(col("k_stick_N_per_m", True))
+        elif n_rate:
+            k_stick = math.inf
+    speeds = [np.abs(ev.covariates["v_drive_m_per_s"]) for ev in tabs]
+    speeds = [s[s > 0] for s in speeds]
+    return DataScale(
+        fn_N=_median(ev.covariates["fn_N"] for ev in tabs),
+        v_m_per_s=_median(speeds),
+        mu_peak=_median(col("peak_N", True, per_fn=True)),
+        mu_trough=_median(col("trough_N", True, per_fn=True)),
+        mu_first=_median(col("peak_N", False, per_fn=True)),
+        k_eff_N_per_m=_median(rates),
+        k_stick_N_per_m=k_stick,
+        stick_s=_median(col("stick_s", True)),
+        delta_measured=delta_measured,
+    )
+
+
+def base_start(scale: DataScale, current: Mapping[str, float],
+               fixed: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Base (and stress-evolution) values at the data's scale (see the module docstring).
+
+    ``current`` holds the model's values (names as in its parameter table); ``fixed`` the values a
+    rig description states, which are kept as given. Only names present in ``current`` are returned.
+    """
+    fixed = dict(fixed or {})
+    out: dict[str, float] = {}
+    if not scale.usable:
+        return out
+    mu_s = scale.mu_peak
+    if math.isfinite(scale.mu_trough):
+        mu_k = min(max(0.5 * (scale.mu_peak + scale.mu_trough), 0.0), mu_s * (1.0 - MIN_GAP))
+    else:
+        mu_k = mu_s * PRESET["mu_k"] / PRESET["mu_s"]  # no trough read: the preset's ratio
+    out["mu_s"], out["mu_k"] = mu_s, mu_k
+    if "mu_smax" in current:
+        first = scale.mu_first if math.isfinite(scale.mu_first) else mu_s
+        out["mu_smax"] = max(first, mu_s)
+    # stiffness split: K_eff = 1 / (1/K0 + 1/Kts)
+    k_eff = scale.k_eff_N_per_m
+    ratio = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
+    k0 = fixed.get("k0_N_per_m", math.nan)
+    kts = fixed.get("kts_N_per_m", math.nan)
+    if math.isfinite(k0) and not math.isfinite(kts):
+        inv = 1.0 / k_eff - 1.0 / k0
+        kts = 1.0 / inv if inv > 0 else 100.0 * k0
+    elif math.isfinite(kts) and not math.isfinite(k0):
+        inv = 1.0 / k_eff - 1.0 / kts
+        k0 = 1.0 / inv if inv > 0 else 100.0 * kts
+    elif not math.isfinite(k0):
+        k_stick = scale.k_stick_N_per_m
+        if not math.isnan(k_stick) and k_stick > 0:
+            # the interface is at least a little stiffer than the series, and at most STIFF_CAP
+            # times it (a rigid interface: the drive spring alone is the compliance)
+            kts = min(max(k_stick, 1.05 * k_eff), STIFF_CAP * k_eff)
+            k0 = 1.0 / (1.0 / k_eff - 1.0 / kts)
+        else:
+            k0 = k_eff * (1.0 + 1.0 / ratio)
+            kts = k0 * ratio
+    out["k0_N_per_m"], out["kts_N_per_m"] = k0, kts
+    if "kt0_N_per_m" in current:
+        out["kt0_N_per_m"] = kts * PRESET_KT0_N_PER_M / PRESET["kts_N_per_m"]
+    # a global slip is the mass on the drive spring (all elements slide): keep the preset's slip
+    # frequency sqrt(K0/M) and damping ratio C0 / (2 sqrt(K0 M))
+    omega2 = PRESET["k0_N_per_m"] / PRESET["m_kg"]
+    zeta = PRESET["c0_N_s_per_m"] / (2.0 * math.sqrt(PRESET["k0_N_per_m"] * PRESET["m_kg"]))
+    m = fixed.get("m_kg", k0 / omega2)
+    out["m_kg"] = m
+    out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * zeta * math.sqrt(k0 * m))
+    out.update({k: v for k, v in fixed.items() if k in current})
+    return {k: float(v) for k, v in out.items() if k in current and math.isfinite(v)}
+
+
+def unit_ratios(scale: DataScale, base: Mapping[str, float]) -> dict[str, float]:
+    """Data / preset ratio of each dimensional quantity effect parameters are measured in."""
+    k_ratio = base.get("k0_N_per_m", PRESET["k0_N_per_m"]) / PRESET["k0_N_per_m"]
+    m_ratio = base.get("m_kg", PRESET["m_kg"]) / PRESET["m_kg"]
+    v_ratio = scale.v_m_per_s / PRESET_V_M_PER_S
+    keff_preset = 1.0 / (1.0 / PRESET["k0_N_per_m"] + 1.0 / PRESET["kts_N_per_m"])
+    drop_preset = 2.0 * (PRESET["mu_s"] - PRESET["mu_k"]) * PRESET_FN_N
+    slip_preset = drop_preset / keff_preset
+    stick_preset = slip_preset / PRESET_V_M_PER_S
+    drop = 2.0 * (scale.mu_peak - scale.mu_trough) * scale.fn_N \
+        if math.isfinite(scale.mu_trough) else math.nan
+    slip = drop / scale.k_eff_N_per_m
+    return {
+        "N": scale.fn_N / PRESET_FN_N,
+        "N/m": k_ratio,
+        "m/s": v_ratio,
+        "m": slip / slip_preset,
+        "s": scale.stick_s / stick_preset,
+        "N s/m": math.sqrt(k_ratio * m_ratio),
+        "kg": m_ratio,
+    }
+
+
+def scale_effect_values(
+    table: Iterable[tuple[str, float, float, float, str]], ratios: Mapping[str, float],
+) -> dict[str, float]:
+    """Effect parameters carried to the data's scale.
+
+    ``table`` rows are (name, value, lower, upper, unit) of the effect's parameters; a parameter
+    whose unit has a ratio outside [1/NEAR_PRESET, NEAR_PRESET] is multiplied by it (clipped to its
+    bounds); others keep their value. Returns only the changed ones.
+    """
+    out: dict[str, float] = {}
+    for name, value, lower, upper, unit in table:
+        r = ratios.get(unit, math.nan)
+        if not (math.isfinite(r) and r > 0) or 1.0 / NEAR_PRESET <= r <= NEAR_PRESET:
+            continue
+        if value == 0.0:
+            continue
+        out[name] = float(min(max(value * r, lower), upper))
+    return out
