@@ -225,8 +225,12 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
     v = r0.verdict
     extra = f" ({', '.join(v.candidates)})" if v.candidates else ""
     print(f"\nverdict: {v.verdict}{extra}")
+    if v.unexplained:
+        print(v.unexplained)
     if v.suggest:
         print(f"to tell them apart: {v.suggest}")
+        for run in v.runs:
+            print(f"  {run['command']}    (reveals {run['reveals']})")
     if r0.discrepancies:
         print("\nwhere the model fails")
         for s in r0.discrepancies:
@@ -242,6 +246,8 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
             bar = "#" * max(1, round(30 * min(frac, 1.0)))
             print(f"  {st.index}: {st.model:46s} error {st.error:8.3g}{fall}  {bar}{note}")
             prev = st.error
-        last = diag.rounds[-1].verdict.kind
-        print("  stopped: " + ("nothing significant left" if last is VerdictKind.NONE else
+        last = diag.rounds[-1].verdict
+        print("  stopped: " + ("nothing significant left" if last.kind is VerdictKind.NONE else
                                "step limit reached"))
+        if last.unexplained:
+            print(f"  {last.unexplained}")

@@ -5,10 +5,10 @@ a folder means every ``*.csv`` and ``*.h5`` file directly in it, in sorted name 
 run of a campaign (import-format.md). Missing paths, empty folders and unknown file types raise
 :class:`rigctl.data.DataError` naming the path.
 
-A ``rig.toml`` beside a run file (in the campaign folder) describes the rig of every run there: its
-entries become the runs' ``rig.<key>`` metadata (docs/csv-format.md, "Rig description"): a number
-as is, a two-number list ``[lo, hi]`` as the range ``lo..hi``, a boolean as yes/no. A key that a
-file states itself must agree with it.
+A ``rig_description.toml`` beside a run file (in the campaign folder) describes the rig of every
+run there: its entries become the runs' ``rig.<key>`` metadata (docs/csv-format.md, "Rig
+description"): a number as is, a two-number list ``[lo, hi]`` as the range ``lo..hi``, a boolean as
+yes/no. A key that a file states itself must agree with it.
 """
 
 from __future__ import annotations
@@ -53,11 +53,12 @@ def expand_paths(paths: Sequence[str | Path]) -> list[Path]:
     return files
 
 
-RIG_FILE = "rig.toml"
+RIG_FILE = "rig_description.toml"
+"""Not ``rig.toml``: that name is usual for a rig configuration (docs/configuration.md)."""
 
 
 def rig_metadata(folder: Path) -> dict[str, str]:
-    """``rig.<key>`` metadata from ``folder/rig.toml`` ({} when there is none)."""
+    """``rig.<key>`` metadata from ``folder/rig_description.toml`` ({} when there is none)."""
     path = folder / RIG_FILE
     if not path.is_file():
         return {}

@@ -36,6 +36,10 @@ class ParamSpec:
     integer: bool = False
     off: float | None = None
     """The value at which the owning effect has no influence (None for base parameters)."""
+    scales_with: str = ""
+    """Which quantity of a rig the default is typical for (SCALES), so that a model of another
+    rig's data starts it at that rig's scale (docs/workbench.md, "Any rig's data"); empty: the
+    default holds for any rig (a ratio, an exponent, a count)."""
 
     def check(self, value: float, owner: str = "") -> float:
         """Return ``value`` as a float, or raise :class:`ParameterError` naming the parameter."""
@@ -68,6 +72,20 @@ class ParamInfo:
     owner: str
     identify: bool
     doc: str
+    scales_with: str = ""
+    """As :attr:`ParamSpec.scales_with`."""
+
+
+SCALES: dict[str, str] = {
+    "fn": "the normal force (a reference load)",
+    "drive_velocity": "the drive velocity",
+    "slip_velocity": "the velocity of a slip, drop / sqrt(K0 M)",
+    "slip_length": "the slip distance, drop / K_eff",
+    "stick_time": "the stick duration",
+    "sample_time": "the sample interval",
+    "damping": "sqrt(K0 M)",
+}
+"""The quantities :attr:`ParamSpec.scales_with` may name."""
 
 
 def check_values(

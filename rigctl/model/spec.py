@@ -81,14 +81,14 @@ class ModelSpec:
     def parameter_table(self) -> list[ParamInfo]:
         rows = [
             ParamInfo(s.name, float(self.base_values[s.name]), s.lower, s.upper, s.unit, "base",
-                      s.identify, s.doc)
+                      s.identify, s.doc, s.scales_with)
             for s in BASE_PARAMS
         ]
         for e in self.effects:
             for s in e.effect.params:
                 rows.append(
                     ParamInfo(self.flat_name(e, s.name), float(e.values[s.name]), s.lower, s.upper,
-                              s.unit, e.effect.name, s.identify, s.doc)
+                              s.unit, e.effect.name, s.identify, s.doc, s.scales_with)
                 )
         return rows
 

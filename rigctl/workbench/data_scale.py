@@ -20,11 +20,13 @@ the base parameters are set from what the measured events show directly (no simu
   mass swings on the drive spring alone: 880 Hz, a slip over in about half a millisecond, under
   one sample at most rates) and C0 the preset's damping ratio C0 / (2 sqrt(K0 M)) (0.75 %).
 
-Effect parameters with a unit are carried to the data's scale by the ratio of the same quantity
-(:func:`scale_effect_values`): reference loads (``N``) to the data's Fn, velocities (``m/s``) by the
-drive velocity, lengths (``m``) by the stick slip distance, times (``s``) by the stick time,
-stiffnesses (``N/m``) by K0, damping (``N s/m``) by sqrt(K M). A ratio within [1/3, 3] of the preset
-is left alone: there the preset's own defaults are the better prior.
+Effect parameters that declare what they scale with (``ParamSpec.scales_with``) are carried to the
+data's scale by the ratio of that quantity, data over preset (:func:`scale_ratios`,
+:func:`scale_effect_values`): a reference load by the normal force, a reference velocity by the
+drive velocity, a Stribeck velocity by the slip velocity drop / sqrt(K0 M), a characteristic length
+by the slip distance drop / K_eff, a contact age by the stick time, a sensor time constant by the
+sample interval, a damping coefficient by sqrt(K0 M). A ratio within [1/3, 3] of the preset is left
+alone: there the preset's own defaults are the better prior.
 """
 
 from __future__ import annotations
@@ -43,7 +45,8 @@ PRESET_FN_N = 300.0
 """The preset's normal force (paper Sec. 5.3)."""
 PRESET_V_M_PER_S = 1e-5
 """The preset's drive velocity (paper Sec. 5.3)."""
-PRESET_MU_SMAX = 0.2
+PRESET_SAMPLE_RATE_HZ = 1024.0
+"""This rig's DAQ rate (the preset's sensor time constant is three of its samples)."""
 PRESET_KT0_N_PER_M = 1.5e6
 NEAR_PRESET = 3.0
 """A data scale within this factor of the preset's leaves the preset's effect defaults alone."""
@@ -200,26 +203,26 @@ def base_start(scale: DataScale, current: Mapping[str, float],
     return {k: float(v) for k, v in out.items() if k in current and math.isfinite(v)}
 
 
-def unit_ratios(scale: DataScale, base: Mapping[str, float]) -> dict[str, float]:
-    """Data / preset ratio of each dimensional quantity effect parameters are measured in."""
-    k_ratio = base.get("k0_N_per_m", PRESET["k0_N_per_m"]) / PRESET["k0_N_per_m"]
-    m_ratio = base.get("m_kg", PRESET["m_kg"]) / PRESET["m_kg"]
-    v_ratio = scale.v_m_per_s / PRESET_V_M_PER_S
+def scale_ratios(scale: DataScale, base: Mapping[str, float],
+                 sample_rate_hz: float) -> dict[str, float]:
+    """Data / preset ratio of each quantity a parameter may scale with (``ParamSpec.scales_with``,
+    :data:`rigctl.model.params.SCALES`)."""
+    k0 = base.get("k0_N_per_m", PRESET["k0_N_per_m"])
+    m = base.get("m_kg", PRESET["m_kg"])
     keff_preset = 1.0 / (1.0 / PRESET["k0_N_per_m"] + 1.0 / PRESET["kts_N_per_m"])
     drop_preset = 2.0 * (PRESET["mu_s"] - PRESET["mu_k"]) * PRESET_FN_N
-    slip_preset = drop_preset / keff_preset
-    stick_preset = slip_preset / PRESET_V_M_PER_S
     drop = 2.0 * (scale.mu_peak - scale.mu_trough) * scale.fn_N \
-        if math.isfinite(scale.mu_trough) else math.nan
-    slip = drop / scale.k_eff_N_per_m
+        if math.isfinite(scale.mu_trough) and scale.mu_trough < scale.mu_peak else math.nan
+    slip_preset = drop_preset / keff_preset
     return {
-        "N": scale.fn_N / PRESET_FN_N,
-        "N/m": k_ratio,
-        "m/s": v_ratio,
-        "m": slip / slip_preset,
-        "s": scale.stick_s / stick_preset,
-        "N s/m": math.sqrt(k_ratio * m_ratio),
-        "kg": m_ratio,
+        "fn": scale.fn_N / PRESET_FN_N,
+        "drive_velocity": scale.v_m_per_s / PRESET_V_M_PER_S,
+        "slip_velocity": (drop / math.sqrt(k0 * m))
+        / (drop_preset / math.sqrt(PRESET["k0_N_per_m"] * PRESET["m_kg"])),
+        "slip_length": (drop / scale.k_eff_N_per_m) / slip_preset,
+        "stick_time": scale.stick_s / (slip_preset / PRESET_V_M_PER_S),
+        "sample_time": PRESET_SAMPLE_RATE_HZ / sample_rate_hz,
+        "damping": math.sqrt(k0 * m / (PRESET["k0_N_per_m"] * PRESET["m_kg"])),
     }
 
 
@@ -228,13 +231,13 @@ def scale_effect_values(
 ) -> dict[str, float]:
     """Effect parameters carried to the data's scale.
 
-    ``table`` rows are (name, value, lower, upper, unit) of the effect's parameters; a parameter
-    whose unit has a ratio outside [1/NEAR_PRESET, NEAR_PRESET] is multiplied by it (clipped to its
-    bounds); others keep their value. Returns only the changed ones.
+    ``table`` rows are (name, value, lower, upper, scales_with) of the effect's parameters; a
+    parameter whose quantity has a ratio outside [1/NEAR_PRESET, NEAR_PRESET] is multiplied by it
+    (clipped to its bounds); others keep their value. Returns only the changed ones.
     """
     out: dict[str, float] = {}
-    for name, value, lower, upper, unit in table:
-        r = ratios.get(unit, math.nan)
+    for name, value, lower, upper, kind in table:
+        r = ratios.get(kind, math.nan)
         if not (math.isfinite(r) and r > 0) or 1.0 / NEAR_PRESET <= r <= NEAR_PRESET:
             continue
         if value == 0.0:

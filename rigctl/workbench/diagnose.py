@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from rigctl.errors import SimulationError
+from rigctl.model import MAX_NORMAL_FORCE_N, ParameterError
 from rigctl.workbench.dataset import Dataset, protocols_present
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.evaluate import evaluate, simulate_run
@@ -27,11 +29,14 @@ from rigctl.workbench.identify import FitResult, fit, fn_range, free_params, phy
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 from rigctl.workbench.ranking import (
+    HALVING,
     CandidateScore,
     Verdict,
     VerdictKind,
     rank,
     score_candidate,
+    suggest_runs,
+    unexplained_text,
     verdict,
 )
 from rigctl.workbench.residual_map import (
@@ -43,6 +48,8 @@ from rigctl.workbench.residual_map import (
 )
 
 MAX_AUTO_STEPS = 5
+PRUNE_MAX_NFEV = 12
+"""Least-squares evaluations of the refit without an effect when checking that it earns its place."""
 COST_PROBE_S = 30.0
 Progress = Callable[[str], None]
 
@@ -97,6 +104,8 @@ class Diagnosis:
             "verdict": r0.verdict.verdict,
             "candidates": r0.verdict.candidates,
             "suggest": r0.verdict.suggest,
+            "suggest_runs": r0.verdict.runs,
+            "unexplained": r0.verdict.unexplained,
             "discrepancies": r0.discrepancies,
             "protocols_present": self.protocols,
             "notes": list(self.dataset.notes),
@@ -105,6 +114,7 @@ class Diagnosis:
             out["steps"] = [s.to_json() for s in self.steps]
             out["final_model"] = self.final_model.choice.label()
             out["final_error"] = self.final_model.error
+            out["final_unexplained"] = self.rounds[-1].verdict.unexplained
         return out
 
 
@@ -217,7 +227,18 @@ def run_round(
         scores.append(sc)
     ranked = rank(scores)
     v = verdict(ranked, model.choice.effect_files, protocols_present(dataset))
-    return Round(model, ranked, v, by_name, discrepancies(base_map))
+    if v.runs:
+        v.runs = suggest_runs(v.candidates, model.choice.effect_files, _rig_fn(dataset))
+    base_disc = discrepancies(base_map)
+    best = next((s for s in ranked if s.significant), None)
+    if best is None:
+        best = next((s for s in ranked if math.isfinite(s.error_reduction)), None)
+    residual = base_disc
+    if best is not None and best.effect in by_name and best.error_reduction > 0:
+        residual = discrepancies(
+            residual_map(dataset, evaluate(dataset, by_name[best.effect].choice).score.comparisons))
+    v.unexplained = unexplained_text(best, model.error, residual)
+    return Round(model, ranked, v, by_name, base_disc)
 
 
 def diagnose(
@@ -260,4 +281,53 @@ def diagnose(
         if not pool:
             diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
             break
+    if auto and len(diag.steps) > 1:
+        _keep_effects_that_earn_their_place(dataset, diag, say)
     return diag
+
+
+def _rig_fn(dataset: Dataset) -> float | None:
+    """The campaign's median normal force where this rig can apply it (suggested runs are runs of
+    this rig: a record of another rig at 20 kN gets the protocol's own default)."""
+    fns = [float(np.median(r.drive.fn_N)) for r in dataset.runs]
+    fn = float(np.median(fns)) if fns else math.nan
+    return fn if 0.0 < fn <= MAX_NORMAL_FORCE_N else None
+
+
+def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
+    """``choice`` without ``effect`` (its parameters dropped, the others kept)."""
+    prefix = f"{effect}."
+    values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
+    return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
+                       choice.effect_files)
+
+
+def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: Progress) -> None:
+    """Every effect ``--auto`` added must, in the final model, at least halve the error: the model
+    refitted without it must be at least twice as wrong (ranking.HALVING). One that does not is
+    removed (the model refitted without it), and the last round's verdict says what no library
+    effect explains. A lone added effect is so judged against the baseline; of two hidden effects
+    each alone removes only part of the error, but in the final model each halves it."""
+    model = diag.rounds[-1].model
+    for effect in [st.added for st in diag.steps if st.added]:
+        if effect not in model.choice.effects:
+            continue
+        try:
+            rest = identify_model(dataset, without_effect(model.choice, effect),
+                                  with_uncertainty=False, max_nfev=PRUNE_MAX_NFEV)
+        except (ParameterError, SimulationError):
+            continue
+        if model.error <= HALVING * rest.error:
+            continue
+        say(f"removing {effect}: without it the error is {rest.error:.3g}, with it "
+            f"{model.error:.3g} (it does not halve it)")
+        model = refine(dataset, rest)
+        diag.steps.append(DiagnosisStep(
+            len(diag.steps), model.choice.label(), None, model.error, None,
+            f"removed {effect}: it does not halve the error ({rest.error:.3g} without it, "
+            f"{diag.rounds[-1].model.error:.3g} with it)"))
+        last = diag.rounds[-1]
+        text = unexplained_text(None, model.error, discrepancies(residual_map(
+            dataset, evaluate(dataset, model.choice).score.comparisons)))
+        diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None, text), {},
+                                 last.discrepancies))

@@ -28,7 +28,12 @@ import numpy as np
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
-from rigctl.workbench.data_scale import base_start, measure_scale
+from rigctl.workbench.data_scale import (
+    base_start,
+    measure_scale,
+    scale_effect_values,
+    scale_ratios,
+)
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.guess import initial_guess
@@ -144,6 +149,8 @@ def _scan(
     lo = np.array([fp.u_bounds[0] for fp in base_free])
     hi = np.array([fp.u_bounds[1] for fp in base_free])
     evaluated: list[tuple[dict[str, float], np.ndarray]] = []
+    current = {p.name: p.value for p in choice.parameter_table()}
+    base_now = {fp.name: current[fp.name] for fp in base_free}
     for raw_pt in points:
         if not physically_valid(choice.with_values(raw_pt), fns):
             continue
@@ -154,7 +161,7 @@ def _scan(
         except SimulationError:
             continue
         if not physically_valid(choice.with_values(pt), fns):
-            pt = dict(raw_pt)  # valid: checked above
+            pt = {**base_now, **raw_pt}  # valid: checked above
         vec = _vector_or_none(dataset, choice.with_values(pt), fns)
         if vec is not None and np.all(np.isfinite(vec)):
             evaluated.append((pt, vec))
@@ -301,9 +308,31 @@ def fit_candidate(task: CandidateTask, with_uncertainty: bool = False) -> FitRes
     return result
 
 
+def _at_data_scale(dataset: Dataset, choice: ModelChoice, effect: str) -> ModelChoice:
+    """The effect's dimensional defaults carried to the data's scale (data_scale.py: only where
+    the data lie more than a factor 3 from the preset), except what the rig description fixes."""
+    scale = measure_scale((r.events for r in dataset.runs),
+                          delta_measured=any(r.delta_measured for r in dataset.runs))
+    if not scale.usable:
+        return choice
+    prefix = f"{effect}."
+    table = [(p.name, p.value, p.lower, p.upper, p.scales_with)
+             for p in choice.parameter_table()
+             if p.name.startswith(prefix) and p.scales_with and p.name not in dataset.rig.fixed]
+    base_vals = {k: v for k, v in choice.values.items() if "." not in k}
+    rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
+    changed = scale_effect_values(table, scale_ratios(scale, base_vals, rate))
+    if not changed:
+        return choice
+    try:
+        return choice.with_values(changed)
+    except ParameterError:
+        return choice
+
+
 def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
     dataset, base, effect = task.dataset, task.base, task.effect
-    choice = base.choice.with_effect(effect)
+    choice = _at_data_scale(dataset, base.choice.with_effect(effect), effect)
     table = {p.name: p for p in choice.parameter_table()}
     cls = effect_class(effect, choice.effect_files)
     prefix = f"{effect}."

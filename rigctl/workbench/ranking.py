@@ -18,6 +18,12 @@ large the ratio of two small errors). Verdict:
   Raftery's "strong"): the data cannot tell them apart, and the protocols that reveal them are
   suggested (each effect declares its ``reveal_protocol``);
 * otherwise the best candidate's name.
+
+**What the library does not explain.** A named effect should remove at least half of the error
+(HALVING); where the best one removes less, or none is significant while the error stays well above
+the scatter (E^2 > STRUCTURED_E2) with a structured residual, the verdict says so in words, with
+the residual that stays: ``none of the library explains: ...`` (:attr:`Verdict.unexplained`),
+instead of leaving the nearest effect to stand for it.
 """
 
 from __future__ import annotations
@@ -33,6 +39,10 @@ SIGNIFICANT_DELTA_BIC = -10.0
 MIN_ERROR_REDUCTION = 0.10
 MIN_E2_REDUCTION = 0.5
 INDISTINGUISHABLE_DELTA_BIC = 6.0
+HALVING = 0.5
+"""An effect earns its place when it removes at least this fraction of the error."""
+STRUCTURED_E2 = 4.0
+"""E^2 above this (twice the scatter) counts as a misfit to explain, not noise."""
 
 
 @dataclass
@@ -96,6 +106,10 @@ class Verdict:
     """As reported (text, JSON, report): the effect's name, ``none`` or ``indistinguishable``."""
     candidates: list[str]
     suggest: str | None
+    unexplained: str = ""
+    """What no library effect explains (module docstring), in words; empty when nothing is left."""
+    runs: list[dict[str, object]] = field(default_factory=list)
+    """The suggestion as runnable protocols (:func:`suggest_runs`), for ``indistinguishable``."""
 
     @property
     def kind(self) -> VerdictKind:
@@ -120,8 +134,53 @@ def verdict(ranked: Sequence[CandidateScore], effect_files: tuple[str, ...] = ()
     if not close:
         return Verdict(best.effect, [], None)
     names = [best.effect] + [s.effect for s in close]
-    return Verdict(VerdictKind.INDISTINGUISHABLE, names, suggest_protocol(names, effect_files,
-                                                                 protocols_present))
+    return Verdict(VerdictKind.INDISTINGUISHABLE, names,
+                   suggest_protocol(names, effect_files, protocols_present),
+                   runs=suggest_runs(names, effect_files))
+
+
+def unexplained_text(best: CandidateScore | None, e_base: float,
+                     residual: Sequence[str]) -> str:
+    """``none of the library explains: ...`` when the best candidate removes less than HALVING of
+    a structured misfit, else empty. ``residual``: the discrepancies that stay (with the best
+    candidate added, if there is one)."""
+    if e_base**2 <= STRUCTURED_E2 or not residual:
+        return ""
+    if best is not None and math.isfinite(best.error_reduction) \
+            and best.error_reduction >= HALVING:
+        return ""
+    lead = "none of the library explains"
+    if best is not None and math.isfinite(best.error_reduction) and best.error_reduction > 0:
+        lead = (f"none of the library explains most of it (the best, {best.effect}, removes "
+                f"{best.error_reduction:.0%} of the error)")
+    return f"{lead}: " + "; ".join(residual[:3])
+
+
+def suggest_runs(names: Sequence[str], effect_files: tuple[str, ...] = (),
+                 fn_N: float | None = None) -> list[dict[str, object]]:
+    """Each effect's ``reveal_run`` as a protocol run of this rig: ``{"reveals", "protocol",
+    "parameters", "command"}``, one per distinct run (``rigctl run PROTOCOL --param ...`` runs it,
+    dry run, limits and safe state included). ``fn_N`` (the campaign's normal force) is added
+    where the protocol takes one and it does not set its own."""
+    out: list[dict[str, object]] = []
+    seen: set[tuple[str, tuple[tuple[str, str], ...]]] = set()
+    for name in names:
+        cls = effect_class(name, effect_files)
+        run = getattr(cls, "reveal_run", None) if cls else None
+        if not run:
+            continue
+        protocol, params = run[0], tuple(run[1])
+        if (protocol, params) in seen:
+            continue
+        seen.add((protocol, params))
+        parameters = dict(params)
+        if fn_N is not None and protocol != "force_sweep" and "fn_N" not in parameters:
+            parameters["fn_N"] = f"{fn_N:.4g}"
+        command = " ".join(["rigctl", "run", protocol,
+                            *(f"--param {k}={v}" for k, v in parameters.items())])
+        out.append({"reveals": name, "protocol": protocol, "parameters": parameters,
+                    "command": command})
+    return out
 
 
 def suggest_protocol(names: Sequence[str], effect_files: tuple[str, ...] = (),

@@ -121,6 +121,8 @@ def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path,
         f"events); protocols present: {html.escape(', '.join(diag.protocols) or 'none')}</p>",
         f"<h2>Verdict: {verdict}</h2>",
     ]
+    if v.unexplained:
+        body.append(f"<p><b>{html.escape(v.unexplained)}</b></p>")
     if v.suggest:
         body.append(f"<p>To tell them apart: {html.escape(v.suggest)}</p>")
     body += [

@@ -1,8 +1,8 @@
 """What a record says about the rig it came from: parameters to fix or bound, what was measured.
 
 A rig description comes with the data, as ``# key: value`` metadata lines of a CSV file
-(docs/csv-format.md) or as ``rig.toml`` in the campaign folder (:mod:`rigctl.io.load` merges it into
-every run of the folder). Keys:
+(docs/csv-format.md) or as ``rig_description.toml`` in the campaign folder (:mod:`rigctl.io.load`
+merges it into every run of the folder). Keys:
 
 * ``rig.<parameter>``: a model parameter (as ``rigctl model compare`` lists them: ``m_kg``,
   ``k0_N_per_m``, ``c0_N_s_per_m``, ``mu_s``, ...) as a number, which **fixes** it (the fit leaves it

@@ -90,7 +90,7 @@ def test_tribometer_without_probes_is_fitted_at_its_own_scale() -> None:
 def test_a_rig_description_fixes_and_bounds_parameters(tmp_path: Path) -> None:
     for f in ENS.glob("k168_v1100.csv"):
         (tmp_path / f.name).write_bytes(f.read_bytes())
-    (tmp_path / "rig.toml").write_text("m_kg = 0.0307\nk0_N_per_m = [150.0, 190.0]\n")
+    (tmp_path / "rig_description.toml").write_text("m_kg = 0.0307\nk0_N_per_m = [150.0, 190.0]\n")
     runs = load_runs([tmp_path])
     assert runs[0].metadata["rig.m_kg"] == "0.0307"
     ds = prepare_dataset(runs)
@@ -106,13 +106,13 @@ def test_a_rig_description_fixes_and_bounds_parameters(tmp_path: Path) -> None:
 def test_rig_description_errors_name_the_problem(tmp_path: Path) -> None:
     src = (ENS / "k168_v4300.csv").read_text()
     (tmp_path / "a.csv").write_text("# rig.m_kg: 0.02\n" + src)
-    (tmp_path / "rig.toml").write_text("m_kg = 0.0307\n")
-    with pytest.raises(DataError, match=r"rig.m_kg.*disagrees with rig.toml"):
+    (tmp_path / "rig_description.toml").write_text("m_kg = 0.0307\n")
+    with pytest.raises(DataError, match=r"rig.m_kg.*disagrees with rig_description.toml"):
         load_runs([tmp_path / "a.csv"])
-    (tmp_path / "rig.toml").write_text("m_kg = 'heavy'\n")
+    (tmp_path / "rig_description.toml").write_text("m_kg = 'heavy'\n")
     with pytest.raises(DataError, match="expected a number"):
         load_runs([tmp_path / "a.csv"])
-    (tmp_path / "rig.toml").unlink()
+    (tmp_path / "rig_description.toml").unlink()
     (tmp_path / "b.csv").write_text("# rig.wobble_N: 3\n" + src)
     runs = load_runs([tmp_path / "b.csv"])
     with pytest.raises(DataError, match=r"unknown parameter 'rig\.wobble_N'"):

@@ -111,8 +111,11 @@ class Effect:
     1. Declare the class attributes: ``name`` (a new Python identifier; it names the effect in model
        specs, files and the CLI), ``summary`` (one line), ``signature`` (what the residual of a
        model without the effect looks like), ``reveal_protocol`` (the protocol that best shows
-       it) and ``params``: one :class:`~rigctl.model.params.ParamSpec` per parameter, SI unit in
-       the name and in ``unit`` (``"-"`` if none), finite bounds with the default inside them.
+       it, in words) and ``reveal_run`` (the same as a run: a protocol name of ``rigctl run`` and
+       its parameters as ``--param`` texts; optional) and ``params``: one
+       :class:`~rigctl.model.params.ParamSpec` per parameter, SI unit in the name and in ``unit``
+       (``"-"`` if none), finite bounds with the default inside them; a default typical of one
+       rig's scale says which quantity it scales with (``scales_with``).
     2. Give every parameter an ``off`` value inside its bounds, or override :meth:`off_values` when
        "off" depends on the base parameters. At its off values the effect leaves every output of
        the model bit for bit as the model without it. At its defaults it changes something.
@@ -143,6 +146,9 @@ class Effect:
     params: ClassVar[tuple[ParamSpec, ...]] = ()
     reveal_protocol: ClassVar[str] = ""
     """The protocol that best separates this effect from others (used in diagnosis advice)."""
+    reveal_run: ClassVar[tuple[str, tuple[tuple[str, str], ...]] | None] = None
+    """``reveal_protocol`` as a runnable suggestion: (protocol name for ``rigctl run``,
+    ((parameter, value text), ...)); ``diagnose --json`` gives it so that it can be run."""
 
     def off_values(self, base: Mapping[str, float]) -> dict[str, float]:
         """Parameter values at which this effect leaves the model exactly as without it."""

@@ -20,6 +20,7 @@ class ContactDegradation(Effect):
     summary = "stable-stage stiffness decays over cycles to a plateau"
     signature = "stick slopes decrease cycle by cycle, then settle"
     reveal_protocol = "a long TLRE with many stable cycles"
+    reveal_run = ("tlre", (("travel_m", "0.0008"), ("repetitions", "1")))
     params = (
         ParamSpec("amplitude", 0.3, 0.0, 5.0, "-", "initial excess A of Kts", off=0.0),
         ParamSpec("n_cycles", 3.0, 0.1, 1000.0, "-", "decay constant n_c in cycles", off=3.0),

@@ -19,10 +19,11 @@ class InterfaceDamping(Effect):
     name = "interface_damping"
     summary = "viscous damping at the interface"
     signature = "ringing after slip decays faster; slip residual ~ velocity"
-    reveal_protocol = "TLRE at higher drive velocity (larger, faster slips)"
+    reveal_protocol = "a normal-force sweep (faster slips at higher Fn: the damping force grows with them)"
+    reveal_run = ("force_sweep", (("forces_N", "150,250,350"),))
     params = (
         ParamSpec("c_N_s_per_m", 30.0, 0.0, 300.0, "N s/m", "interface damping coefficient",
-                  off=0.0),
+                  off=0.0, scales_with="damping"),
     )
 
     def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:

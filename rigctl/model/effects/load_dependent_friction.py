@@ -20,10 +20,11 @@ class LoadDependentFriction(Effect):
     summary = "mu_s, mu_k grow with Fn as power laws"
     signature = "drop sizes across a force sweep scale non-linearly with Fn"
     reveal_protocol = "a normal-force sweep (150-350 N)"
+    reveal_run = ("force_sweep", (("forces_N", "150,200,250,300,350"),))
     params = (
         ParamSpec("alpha_s", 0.3, -2.0, 2.0, "-", "exponent on mu_s", off=0.0),
         ParamSpec("alpha_k", 0.3, -2.0, 2.0, "-", "exponent on mu_k", off=0.0),
-        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force",
+        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force", scales_with="fn",
                   identify=False, off=300.0),
     )
 

@@ -20,10 +20,11 @@ class LoadDependentStiffness(Effect):
     summary = "Kt grows with Fn as a power law with falling growth rate"
     signature = "stick slope and K(1) across a force sweep"
     reveal_protocol = "a normal-force sweep (150-350 N)"
+    reveal_run = ("force_sweep", (("forces_N", "150,200,250,300,350"),))
     params = (
         ParamSpec("beta0", 0.5, -1.0, 2.0, "-", "exponent on Kt0 (initial stage)", off=0.0),
         ParamSpec("beta_s", 0.3, -1.0, 2.0, "-", "exponent on Kts (stable stage)", off=0.0),
-        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force",
+        ParamSpec("fn_ref_N", 300.0, 1e-6, 1e9, "N", "reference normal force", scales_with="fn",
                   identify=False, off=300.0),
     )
 

@@ -21,6 +21,7 @@ class NormalCoupling(Effect):
     summary = "Fn varies with the tangential force"
     signature = "residual correlates with Ft; Fn moves during slip"
     reveal_protocol = "TLRE recording Fn at full rate (its jumps at slips)"
+    reveal_run = ("tlre", (("repetitions", "1"),))
     params = (
         ParamSpec("kappa", 0.1, -0.5, 0.5, "-", "dFn / dFt coupling", off=0.0),
     )

@@ -34,6 +34,7 @@ class Presliding(Effect):
     summary = "Iwan/Dahl-type pre-sliding: the stick ramp rounds off before the peak"
     signature = "the stick ramp rounds off before the peak"
     reveal_protocol = "a slow TLRE (1 um/s) resolving the last newtons before each peak"
+    reveal_run = ("tlre", (("velocity_m_s", "1e-06"), ("repetitions", "1")))
     params = (
         ParamSpec("spread", 0.5, 0.0, 0.95, "-", "relative spread w of element thresholds",
                   off=0.0),

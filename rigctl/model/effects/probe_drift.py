@@ -24,8 +24,10 @@ class ProbeDrift(Effect):
     summary = "slow drift of the displacement probes"
     signature = "delta residual grows with time at equal force"
     reveal_protocol = "a long hold at constant force recording delta"
+    reveal_run = ("slide_hold_slide", (("holds_s", "300"),))
     params = (
-        ParamSpec("rate_m_per_s", 5e-8, -1e-5, 1e-5, "m/s", "drift rate r of probe 1", off=0.0),
+        ParamSpec("rate_m_per_s", 5e-8, -1e-5, 1e-5, "m/s", "drift rate r of probe 1", off=0.0,
+                  scales_with="drive_velocity"),
     )
 
     def transform_output(self, result: SimResult, values: Mapping[str, float]) -> None:

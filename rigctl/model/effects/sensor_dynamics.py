@@ -20,8 +20,10 @@ class SensorDynamics(Effect):
     summary = "first-order low-pass of the force sensor"
     signature = "drops smeared in time; residual ~ -tau dFt/dt"
     reveal_protocol = "any run with slips, looking at the drop shape at full rate"
+    reveal_run = ("tlre", (("repetitions", "1"),))
     params = (
-        ParamSpec("tau_s", 3e-3, 0.0, 0.5, "s", "sensor time constant", off=0.0),
+        ParamSpec("tau_s", 3e-3, 0.0, 0.5, "s", "sensor time constant", off=0.0,
+                  scales_with="sample_time"),
     )
 
     def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:

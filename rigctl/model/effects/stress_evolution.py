@@ -33,6 +33,7 @@ class StressEvolution(Effect):
     summary = "initial stage with a linear stress distribution, Kt0 and mu_s,max (paper Sec. 5.2)"
     signature = "initial-stage Ft-delta curve bends while the model's stays straight"
     reveal_protocol = "TLRE: a tangential run from rest, analysing the initial stage"
+    reveal_run = ("tlre", (("repetitions", "1"),))
     params = (
         ParamSpec("kt0_N_per_m", 1.5e6, 1e-3, 1e13, "N/m",
                   "interface stiffness of the initial stage Kt0 (project default; paper gives none)"),

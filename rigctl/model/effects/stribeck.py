@@ -26,8 +26,10 @@ class Stribeck(Effect):
     summary = "velocity weakening of kinetic friction"
     signature = "stress drop and trough depend on slip velocity / drive velocity"
     reveal_protocol = "velocity steps at two normal loads (the slip velocity scales with Fn)"
+    reveal_run = ("velocity_steps", (("velocities_m_s", "1e-06,1e-05,3e-05,1e-05,1e-06"),))
     params = (
-        ParamSpec("vs_m_per_s", 5e-3, 0.0, 10.0, "m/s", "Stribeck velocity v_s", off=0.0),
+        ParamSpec("vs_m_per_s", 5e-3, 0.0, 10.0, "m/s", "Stribeck velocity v_s", off=0.0,
+                  scales_with="slip_velocity"),
         ParamSpec("d", 1.0, 0.2, 4.0, "-", "Stribeck exponent d", identify=False, off=1.0),
     )
 

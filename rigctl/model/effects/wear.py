@@ -21,11 +21,12 @@ class Wear(Effect):
     summary = "friction coefficients evolve with cumulative slip distance"
     signature = "event sizes drift with cumulative slip"
     reveal_protocol = "a long TLRE (many slips) or repeated TLREs on the same track"
+    reveal_run = ("tlre", (("travel_m", "0.0008"), ("repetitions", "2")))
     params = (
         ParamSpec("dmu_s", 0.02, -0.5, 0.5, "-", "asymptotic change of mu_s", off=0.0),
         ParamSpec("dmu_k", 0.02, -0.5, 0.5, "-", "asymptotic change of mu_k", off=0.0),
         ParamSpec("s_wear_m", 3e-4, 1e-6, 1.0, "m", "wear length s_w", identify=False,
-                  off=3e-4),
+                  off=3e-4, scales_with="slip_length"),
     )
 
     def invalid_reason(
