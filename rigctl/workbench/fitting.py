@@ -38,6 +38,7 @@ from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
+    DYNAMIC_PARAMS,
     FitResult,
     FreeParam,
     HybridJacobian,
@@ -85,6 +86,16 @@ def identify_model(
         e_scaled = _error_or_inf(dataset, scaled, fns)
         if e_scaled < e_best:
             best_choice, e_best = scaled, e_scaled
+    if best_choice is scaled:
+        # another rig: its mass and damping are guesses (data_scale.py); the post-slip dynamics
+        # (ringing, drop shape) determine them where the sampling resolves them, else the fit
+        # reports them as not determined
+        have = {fp.name for fp in free}
+        extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
+        if "m_kg" in extra:
+            best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
+                                             keep_damping="c0_N_s_per_m" in extra)
+        free = free + free_params(best_choice, extra, rig=rig)
     start: dict[str, float] = {}
     try:
         guess = initial_guess(dataset, best_choice, free)
@@ -94,6 +105,32 @@ def identify_model(
         start = guess
     return fit(dataset, best_choice, free, start=start, max_nfev=max_nfev,
                with_uncertainty=with_uncertainty)
+
+
+MASS_SCAN_FACTORS: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 3.0, 10.0, 30.0, 100.0)
+"""Mass multiples tried before the local fit on another rig's data (a global search of the one
+parameter the local fit does not move: the drop shape and ringing are not smooth in M)."""
+
+
+def _scan_mass(dataset: Dataset, choice: ModelChoice, e_now: float, fns: tuple[float, float],
+               keep_damping: bool) -> tuple[ModelChoice, float]:
+    """The best mass of MASS_SCAN_FACTORS x the start (C0 moved with sqrt(M), keeping the damping
+    ratio, when it is fitted too), by the event-aware error."""
+    values = dict(choice.values)
+    m0, c0 = values["m_kg"], values.get("c0_N_s_per_m", 0.0)
+    best, e_best = choice, e_now
+    for f in MASS_SCAN_FACTORS:
+        trial = {"m_kg": m0 * f}
+        if keep_damping and c0 > 0:
+            trial["c0_N_s_per_m"] = c0 * f**0.5
+        try:
+            cand = choice.with_values(trial)
+        except ParameterError:
+            continue
+        e = _error_or_inf(dataset, cand, fns)
+        if e < e_best:
+            best, e_best = cand, e
+    return best, e_best
 
 
 def _error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:

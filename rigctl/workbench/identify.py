@@ -46,6 +46,10 @@ FAILED_RESIDUAL = 1e3
 :class:`Objective` raises it to FAILED_FACTOR times the first valid norm, so that on data far from
 the model (a record of another rig) a failed point never looks better than a poor valid one."""
 FAILED_FACTOR = 100.0
+DYNAMIC_PARAMS = ("m_kg", "c0_N_s_per_m")
+"""Mass and drive damping: not fitted on this rig's data (the paper gives them); fitted on another
+rig's, where the start is only a guess (:func:`rigctl.workbench.fitting.identify_model`)."""
+DYNAMIC_SPAN = 1e3
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,12 @@ class FreeParam:
 
     @staticmethod
     def from_info(info: ParamInfo) -> FreeParam:
+        if info.name in DYNAMIC_PARAMS and info.value > 0.0:
+            # mass and drive damping span decades between rigs and C0 may be 0 in its bounds:
+            # fitted in log, within DYNAMIC_SPAN of the start
+            lo = max(info.lower, info.value / DYNAMIC_SPAN, 1e-300)
+            hi = min(info.upper, info.value * DYNAMIC_SPAN)
+            return FreeParam(info.name, lo, hi, True, abs(info.value))
         log = info.lower > 0.0 and info.upper / info.lower > 20.0
         scale = max(abs(info.value), 0.01 * (info.upper - info.lower), 1e-300)
         return FreeParam(info.name, info.lower, info.upper, log, scale)
