@@ -170,6 +170,19 @@ class ForceLimitError(DeviceError):
         )
 
 
+class StaleReadingError(DeviceError):
+    """A force reading stopped changing: the sensor or its DAQ is frozen; the stages were stopped."""
+
+    def __init__(self, device: str, frozen_s: float, since_t_s: float) -> None:
+        self.frozen_s = frozen_s
+        self.since_t_s = since_t_s
+        super().__init__(
+            device,
+            f"force reading frozen: fx, fy, fz identical for {frozen_s:.2f} s (since device time "
+            f"{since_t_s:.2f} s): the force sensor or the DAQ is stuck; stages emergency-stopped",
+        )
+
+
 class StageAlarm(DeviceError):  # noqa: N818 - name fixed by the contract
     """The stage controller reports an alarm (code and name from docs/protocols.md)."""
 

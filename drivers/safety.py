@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from drivers.errors import EmergencyStopActive, ForceLimitError
+from drivers.errors import EmergencyStopActive, ForceLimitError, StaleReadingError
 
 if TYPE_CHECKING:
     from drivers.interfaces import LoadingStage
@@ -270,3 +270,75 @@ class ForceGuard:
     def detach(self) -> None:
         """Stop guarding the stage (removes the interlock)."""
         self._stage.remove_interlock(self)
+
+
+STALE_WINDOW_S = 0.5
+"""A force reading whose three channels stay bit-identical this long (device time) is frozen: a
+live strain-gauge sensor flickers by at least one count within milliseconds (the simulated one by
+0.05-0.2 N RMS on 0.02 N counts), so half a second without any change is a stuck sensor or DAQ."""
+
+
+class StaleReadingGuard:
+    """Stops the stages when the force reading freezes (docs/reliability.md).
+
+    Feed it every block of raw force channels with their device times (``feed(t_s, channels)``,
+    from the acquisition thread). When no channel has changed for ``window_s`` of device time it
+    returns the :class:`StaleReadingError` naming the DAQ, and :meth:`halt` stops every stage
+    given; it stays tripped (later feeds return None). A frozen
+    reading is caught whether the DAQ's counter still advances (a stuck sensor) or not (the same
+    block repeated): only the values are judged.
+    """
+
+    def __init__(self, stages: Iterable[LoadingStage], device: str = "daq",
+                 window_s: float = STALE_WINDOW_S) -> None:
+        if not (math.isfinite(window_s) and window_s > 0):
+            raise ValueError(f"stale-reading window must be a positive number of s: {window_s!r}")
+        self._stages = tuple(stages)
+        self._device = device
+        self._window_s = float(window_s)
+        self._last: np.ndarray | None = None
+        self._last_change_t: float | None = None
+        self._trip: StaleReadingError | None = None
+
+    @property
+    def window_s(self) -> float:
+        return self._window_s
+
+    @property
+    def trip(self) -> StaleReadingError | None:
+        return self._trip
+
+    def feed(self, t_s: np.ndarray, channels: Iterable[np.ndarray]) -> StaleReadingError | None:
+        """Judge one block; returns the error on the block that trips (then call :meth:`halt`
+        after making the fault visible), else None."""
+        t = np.asarray(t_s, dtype=np.float64).ravel()
+        if t.size == 0 or self._trip is not None:
+            return None
+        block = np.column_stack([np.asarray(c, dtype=np.float64).ravel() for c in channels])
+        prev = block[:1] if self._last is None else self._last[None, :]
+        changed = np.any(np.diff(np.vstack([prev, block]), axis=0) != 0.0, axis=1)
+        if self._last_change_t is None:
+            self._last_change_t = float(t[0])
+        if changed.any():
+            self._last_change_t = float(t[int(np.flatnonzero(changed)[-1])])
+        self._last = block[-1].copy()
+        frozen = float(t[-1]) - self._last_change_t
+        if frozen < self._window_s:
+            return None
+        self._trip = StaleReadingError(self._device, frozen, self._last_change_t)
+        _log.critical("%s", self._trip)
+        return self._trip
+
+    def halt(self) -> None:
+        """Stop every stage (a controlled stop, not a latched emergency stop: the load release that
+        follows is a position move and needs no force reading); an emergency stop where the stop
+        fails. Each stage is tried even if another fails."""
+        for stage in self._stages:
+            try:
+                stage.stop()
+            except Exception as exc:
+                _log.critical("stale-reading guard could not stop %s: %s", stage.name, exc)
+                try:
+                    stage.emergency_stop()
+                except Exception as exc2:  # one dead stage must not keep the others moving
+                    _log.critical("stale-reading guard could not e-stop %s: %s", stage.name, exc2)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drivers.safety import ForceGuard
+from drivers.safety import ForceGuard, StaleReadingGuard
 from experiments.context import Controls, RigLimits, RunContext
 from experiments.errors import ProtocolAborted
 from experiments.params import resolve
@@ -218,8 +218,11 @@ class Runner:
                 overwrite=self.overwrite,
             )
         guard = ForceGuard(self.devices.normal_stage, self.force_limit_N)
+        stale = StaleReadingGuard((self.devices.normal_stage, self.devices.tangential_stage),
+                                  device=self.devices.daq.name)
         acq = Acquisition(
-            self.devices, writer, record_camera=self.camera_layout is not None, force_guard=guard
+            self.devices, writer, record_camera=self.camera_layout is not None, force_guard=guard,
+            stale_guard=stale,
         )
         ctx = RunContext(self.devices, acq, self.limits, self.controls, guard)
         self.ctx = ctx
@@ -255,10 +258,9 @@ class Runner:
                 status, error = RunStatus.ABORTED, "interrupted (Ctrl-C)"
         finally:
             if status != RunStatus.COMPLETED:
-                t_fault = acq.t_s
                 problems = safe_state(ctx, error or status)
                 self._wait_released(ctx)
-                problems += _unreleased(ctx, t_fault)
+                problems += _unreleased(ctx, acq.t_s, stale)
                 if problems:
                     error = f"{error}; safe state incomplete: {'; '.join(problems)}"
                     _log.critical("safe state incomplete: %s", "; ".join(problems))
@@ -280,16 +282,24 @@ class Runner:
 
 RELEASED_MAX_N = 5.0
 """|Fn| above this after the safe state's release means the load is still on the specimen."""
+RELEASE_CHECK_S = 0.1
+"""Device time of force data after the release that the check averages."""
 
 
-def _unreleased(ctx: RunContext, t_fault_s: float) -> list[str]:
-    """The release checked on the measured force, not on the stage's word for it."""
-    if math.isfinite(t_fault_s):
-        ctx.acq.wait_until(t_fault_s + 0.2, 2.0)  # a fresh look at the force after the release
+def _unreleased(ctx: RunContext, t_release_s: float,
+                stale: StaleReadingGuard | None = None) -> list[str]:
+    """The release checked on the measured force recorded after the release finished (device time
+    ``t_release_s``), not on the stage's word for it nor on data from before it."""
+    if stale is not None and stale.trip is not None:
+        return ["the release could not be confirmed from the force: its reading is frozen (the "
+                "normal stage retracted to where it was before contact; check the rig)"]
+    if not math.isfinite(t_release_s):
+        return ["the release could not be confirmed: no force data"]
+    ctx.acq.wait_until(t_release_s + RELEASE_CHECK_S, 2.0)
     t_now = ctx.acq.t_s
-    if not (math.isfinite(t_now) and t_now > t_fault_s):
-        return ["the release could not be confirmed: no force data since the fault"]
-    fn = ctx.acq.mean("fn_N", 0.1)
+    if not (math.isfinite(t_now) and t_now >= t_release_s + RELEASE_CHECK_S):
+        return ["the release could not be confirmed: no force data since the release"]
+    fn = ctx.acq.mean("fn_N", min(RELEASE_CHECK_S, t_now - t_release_s))
     if math.isfinite(fn) and abs(fn) > RELEASED_MAX_N:
         return [f"the normal load is still on: Fn = {fn:.1f} N after the release (check the rig)"]
     return []

@@ -32,7 +32,7 @@ import numpy as np
 
 from drivers.errors import DeviceTimeout
 from drivers.interfaces import Camera, Daq, DaqBlock, DisplacementProbe, LoadingStage
-from drivers.safety import ForceGuard
+from drivers.safety import ForceGuard, StaleReadingGuard
 from rigctl.acquisition.clockmap import ClockMap
 from rigctl.acquisition.publisher import Publisher
 from rigctl.status import RunStatus
@@ -108,6 +108,7 @@ class Acquisition:
         block_samples: int = 1024,
         record_camera: bool = True,
         force_guard: ForceGuard | None = None,
+        stale_guard: StaleReadingGuard | None = None,
         history_s: float = 10.0,
         queue_items: int = 4096,
         max_queued_frames: int = 240,
@@ -124,6 +125,7 @@ class Acquisition:
             and (writer is None or writer.camera is not None)  # only into a file with a camera stream
         )
         self.force_guard = force_guard
+        self.stale_guard = stale_guard
         self.publisher = publisher or Publisher()
         self.clock = ClockMap()
         self.stats = AcquisitionStats()
@@ -316,6 +318,11 @@ class Acquisition:
             trip = self.force_guard.feed(columns["fn_N"])
             if trip is not None:
                 self._fail(trip, "force guard")
+        if self.stale_guard is not None:
+            frozen = self.stale_guard.feed(t, (block.fx_N, block.fy_N, block.fz_N))
+            if frozen is not None:
+                self._fail(frozen, "DAQ watchdog")  # first: procedures stop issuing moves
+                self.stale_guard.halt()
         dropped = int(block.dropped_total - self._last_dropped_total)
         self._last_dropped_total = int(block.dropped_total)
         n = int(t.shape[0])

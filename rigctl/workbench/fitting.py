@@ -29,6 +29,7 @@ import numpy as np
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.workbench.data_scale import (
+    NEAR_PRESET,
     base_start,
     measure_scale,
     scale_effect_values,
@@ -86,7 +87,7 @@ def identify_model(
         e_scaled = _error_or_inf(dataset, scaled, fns)
         if e_scaled < e_best:
             best_choice, e_best = scaled, e_scaled
-    if best_choice is scaled:
+    if scaled is not None and best_choice is scaled and _another_rig(choice, scaled):
         # another rig: its mass and damping are guesses (data_scale.py); the post-slip dynamics
         # (ringing, drop shape) determine them where the sampling resolves them, else the fit
         # reports them as not determined
@@ -141,6 +142,20 @@ def _error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float
         return float(evaluate(dataset, choice).score.error)
     except SimulationError:
         return float("inf")
+
+
+def _another_rig(model: ModelChoice, scaled: ModelChoice) -> bool:
+    """The data lie far from the model's rig: the data-scale drive or interface stiffness is more
+    than NEAR_PRESET times off the model's (a load or friction level alone does not make another
+    rig: this rig runs 150-800 N)."""
+    now = {p.name: p.value for p in model.parameter_table()}
+    new = dict(scaled.values)
+    for name in ("k0_N_per_m", "kts_N_per_m"):
+        if name in new and now.get(name, 0.0) > 0.0:
+            r = new[name] / now[name]
+            if not 1.0 / NEAR_PRESET <= r <= NEAR_PRESET:
+                return True
+    return False
 
 
 def data_scaled(dataset: Dataset, choice: ModelChoice,

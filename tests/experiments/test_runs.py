@@ -201,3 +201,52 @@ def test_a_release_that_does_not_happen_is_reported_from_the_measured_force(rig,
     assert rig.sim.rig.state.fn_N > 250.0  # indeed still loaded: the report is true
     _, error, _ = status_of(out)
     assert "the normal load is still on" in error
+
+
+def test_a_frozen_force_reading_stops_the_load_and_names_the_daq(tmp_path):
+    """The DAQ freezes 1 s into a TLRE, before contact, with a 500 N force limit (docs/reliability.md):
+    the reading stays at ~0 N, so the contact search alone would drive the normal stage on to the
+    rig's mechanical over-load. The stale-reading watchdog stops the stages within its window of
+    device time and the run fails naming the DAQ; the load is released."""
+    out = tmp_path / "frozen.h5"
+    with open_rig("sim", default_config(), speed=math.inf) as rig:
+        runner = make_runner(rig, "tlre", SHORT_TLRE, out, force_limit_N=500.0)
+        th = threading.Thread(target=lambda: result.append(runner.run()))
+        result: list = []
+        th.start()
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and not (runner.ctx and runner.ctx.acq.t_s >= 1.0):
+            time.sleep(0.001)
+        rig.sim.faults["daq"].stuck = True
+        th.join(timeout=60)
+        outcome = result[0]
+        assert outcome.status == "failed"
+        assert "frozen" in outcome.error and "daq" in outcome.error, outcome.error
+        assert "StageAlarm" not in outcome.error and "over-load" not in outcome.error
+        # never pressed towards the rig's over-load: at most a few newtons when the stage stopped
+        assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)
+        assert not rig.devices.normal_stage.status().fault
+    status, error, events = status_of(out)
+    assert status == "failed" and "frozen" in error
+    assert "safe_state" in events
+
+
+def test_a_reading_frozen_mid_load_is_not_reported_as_a_load_still_on(tmp_path):
+    """Frozen at a few tens of newtons while loading: the run fails naming the frozen DAQ, and the
+    safe-state check does not claim from the frozen value that the load is still on."""
+    out = tmp_path / "frozen_mid.h5"
+    with open_rig("sim", default_config(), speed=math.inf) as rig:
+        runner = make_runner(rig, "tlre", SHORT_TLRE, out)
+        result: list = []
+        th = threading.Thread(target=lambda: result.append(runner.run()))
+        th.start()
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and rig.sim.rig.state.fn_N < 40.0:
+            time.sleep(0.0005)
+        rig.sim.faults["daq"].stuck = True
+        th.join(timeout=60)
+        outcome = result[0]
+        assert outcome.status == "failed" and "frozen" in outcome.error, outcome.error
+        assert "still on" not in outcome.error
+        assert "could not be confirmed" in outcome.error
+        assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # released in fact

@@ -1,0 +1,63 @@
+"""The model workbench: compare the model with measured runs, see where it fails, find what is missing.
+
+The pipeline, one module per step (docs/workbench.md tells the why of each):
+
+read
+    :mod:`~rigctl.workbench.dataset` checks runs and makes a campaign ready: the drive simplified
+    (:mod:`~rigctl.workbench.drive_profile`), the slips found (:mod:`~rigctl.workbench.events`) and
+    measured (:mod:`~rigctl.workbench.features`, :mod:`~rigctl.workbench.feature_info`), probes over
+    range or absent (:mod:`~rigctl.workbench.probe_range`), the rig description that came with the
+    data (:mod:`~rigctl.workbench.rig_description`), the scatter each feature is measured in.
+score
+    :mod:`~rigctl.workbench.evaluate` simulates the model on every run and reads it with the same
+    eyes; :mod:`~rigctl.workbench.alignment` pairs model and measured slips;
+    :mod:`~rigctl.workbench.metrics` gives the event-aware error E.
+fit
+    :mod:`~rigctl.workbench.data_scale` (starting values at the data's own scale),
+    :mod:`~rigctl.workbench.guess` (ratio guess), :mod:`~rigctl.workbench.identify` (parameters,
+    objective, least squares, uncertainties), :mod:`~rigctl.workbench.fitting` (the model as given,
+    the model plus one candidate effect), :mod:`~rigctl.workbench.parallel` (candidate fits in
+    worker processes or on Dask).
+decide
+    :mod:`~rigctl.workbench.residual_map` (where it fails, in words),
+    :mod:`~rigctl.workbench.ranking` (evidence, verdict, what no effect explains, runnable
+    suggestions), :mod:`~rigctl.workbench.diagnose` (rounds, ``--auto``, every effect earns its
+    place).
+report
+    :mod:`~rigctl.workbench.compare` (one model against the data), :mod:`~rigctl.workbench.report`
+    and :mod:`~rigctl.workbench.plots` (HTML and figures); :mod:`~rigctl.workbench.campaigns`
+    simulates campaigns for tests and benchmarks.
+
+The public API is below (``__all__``); everything else is free to change. Names are imported
+lazily, so that reading a run (``rigctl.workbench.probe_range`` from the analysis) does not load the
+fitting machinery.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_API: dict[str, str] = {
+    "ModelChoice": "rigctl.workbench.model_choice",
+    "Dataset": "rigctl.workbench.dataset",
+    "prepare_dataset": "rigctl.workbench.dataset",
+    "RigDescription": "rigctl.workbench.rig_description",
+    "evaluate": "rigctl.workbench.evaluate",
+    "identify_model": "rigctl.workbench.fitting",
+    "fit_candidate": "rigctl.workbench.fitting",
+    "FitResult": "rigctl.workbench.identify",
+    "compare": "rigctl.workbench.compare",
+    "Comparison": "rigctl.workbench.compare",
+    "diagnose": "rigctl.workbench.diagnose",
+    "Diagnosis": "rigctl.workbench.diagnose",
+}
+
+__all__ = sorted(_API)
+
+
+def __getattr__(name: str) -> Any:
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rigctl.workbench' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
