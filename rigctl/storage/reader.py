@@ -298,8 +298,58 @@ class RunReader:
             raise DataError(f"not a rigctl run file (definition {definition!r})", path=self.path)
 
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _declared_size(head: bytes) -> int | None:
+    """The end-of-file address an HDF5 superblock at offset 0 declares (None if not readable).
+
+    Superblock layouts (HDF5 file format specification, "Superblock", versions 0-3): the EOF
+    address follows the base and the free-space/extension addresses, each ``size of offsets``
+    bytes: at 24 + 2 so (version 0), 28 + 2 so (version 1), 12 + 2 so (versions 2 and 3).
+    """
+    if len(head) < 16 or not head.startswith(HDF5_SIGNATURE):
+        return None
+    version = head[8]
+    if version in (0, 1):
+        so = head[13]
+        at = (24 if version == 0 else 28) + 2 * so
+    elif version in (2, 3):
+        so = head[9]
+        at = 12 + 2 * so
+    else:
+        return None
+    if so not in (2, 4, 8) or len(head) < at + so:
+        return None
+    return int.from_bytes(head[at : at + so], "little")
+
+
+def _check_not_truncated(path: Path) -> None:
+    """Refuse a file shorter than its header says, before HDF5 sees it: a SWMR open of such a file
+    retries its metadata reads for minutes, ignoring Ctrl-C (a plain open says 'truncated file'
+    but cannot follow a file being written). A file being written keeps its declared end equal to
+    its size (measured on live run files), so this never refuses one."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+        size = path.stat().st_size
+    except OSError as exc:
+        raise DataError(f"cannot read: {exc.strerror or exc}", path=path) from None
+    if head and not head.startswith(HDF5_SIGNATURE):
+        raise DataError("not an HDF5 file (no HDF5 signature at its start)", path=path)
+    if len(head) < 16:
+        raise DataError(f"truncated file: only {size:,} bytes, not even an HDF5 header", path=path)
+    declared = _declared_size(head)
+    if declared is not None and size < declared:
+        raise DataError(
+            f"truncated file: {size:,} bytes of the {declared:,} its header declares (a copy cut "
+            "short or a damaged disk; the data cannot be read)", path=path)
+
+
 def _open(path: Path) -> h5py.File:
-    """Open read-only, SWMR when the file allows it (see the module docstring)."""
+    """Open read-only, SWMR when the file allows it (see the module docstring); a truncated file is
+    refused at once (:func:`_check_not_truncated`)."""
+    _check_not_truncated(path)
     try:
         return h5py.File(path, "r", swmr=True)
     except OSError as swmr_exc:

@@ -297,7 +297,7 @@ def test_unwritable_folder_fails_before_anything_starts(tmp_path: Path) -> None:
 def test_non_run_files_are_refused_clearly(tmp_path: Path) -> None:
     text = tmp_path / "x.h5"
     text.write_text("hello")
-    with pytest.raises(DataError, match="cannot open as HDF5"):
+    with pytest.raises(DataError, match="not an HDF5 file"):
         RunReader(text)
     other = tmp_path / "other.h5"
     with h5py.File(other, "w") as f:
