@@ -12,6 +12,9 @@ them one after another): the reader reports the length all of them have reached.
 from __future__ import annotations
 
 import json
+import logging
+import subprocess
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
@@ -22,6 +25,8 @@ import numpy as np
 
 from rigctl.data import REQUIRED_COLUMNS, DataError, FloatArray, MeasuredRun
 from rigctl.storage import layout
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -64,12 +69,15 @@ class RunReader:
         self.path = Path(path)
         if not self.path.exists():
             raise DataError("no such file", path=self.path)
+        self._truncation = _check_not_truncated(self.path)
         self._file = _open(self.path)
         try:
             self._check_layout()
         except BaseException:
             self._file.close()
             raise
+        if self._truncation:
+            _log.warning("%s: %s; reading what is there", self.path, self._truncation)
         daq = self._file[layout.DAQ]
         names = [layout.as_text(n) for n in daq.attrs["channels"]]
         self._channels: dict[str, h5py.Dataset] = {name: daq[name] for name in names}
@@ -287,7 +295,8 @@ class RunReader:
             or "channels" not in f[layout.DAQ].attrs
         ):
             raise DataError(
-                "not a rigctl run file (no /entry/daq with time and channels)", path=self.path
+                "not a rigctl run file (no /entry/daq with time and channels)"
+                + (f"; {self._truncation}" if self._truncation else ""), path=self.path
             )
         definition = (
             layout.as_text(f[layout.ENTRY]["definition"][()])
@@ -295,7 +304,8 @@ class RunReader:
             else ""
         )
         if definition != layout.FORMAT_NAME:
-            raise DataError(f"not a rigctl run file (definition {definition!r})", path=self.path)
+            raise DataError(f"not a rigctl run file (definition {definition!r})"
+                            + (f"; {self._truncation}" if self._truncation else ""), path=self.path)
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -324,11 +334,14 @@ def _declared_size(head: bytes) -> int | None:
     return int.from_bytes(head[at : at + so], "little")
 
 
-def _check_not_truncated(path: Path) -> None:
+def _check_not_truncated(path: Path) -> str | None:
     """Refuse a file shorter than its header says, before HDF5 sees it: a SWMR open of such a file
     retries its metadata reads for minutes, ignoring Ctrl-C (a plain open says 'truncated file'
     but cannot follow a file being written). A file being written keeps its declared end equal to
-    its size (measured on live run files), so this never refuses one."""
+    its size (measured on live run files), so this never refuses one. A truncated file that opens
+    in a child process within :data:`TRUNCATED_OPEN_TIMEOUT_S` (a disk that filled mid-run) is
+    let through (the reader warns); the returned note ("truncated file: ...") then goes into any later
+    error about the file, else None."""
     try:
         with open(path, "rb") as fh:
             head = fh.read(64)
@@ -340,16 +353,39 @@ def _check_not_truncated(path: Path) -> None:
     if len(head) < 16:
         raise DataError(f"truncated file: only {size:,} bytes, not even an HDF5 header", path=path)
     declared = _declared_size(head)
-    if declared is not None and size < declared:
-        raise DataError(
-            f"truncated file: {size:,} bytes of the {declared:,} its header declares (a copy cut "
-            "short or a damaged disk; the data cannot be read)", path=path)
+    if declared is None or size >= declared:
+        return None
+    note = f"truncated file: {size:,} bytes of the {declared:,} its header declares"
+    if _swmr_opens_within(path, TRUNCATED_OPEN_TIMEOUT_S):
+        return note  # e.g. a run whose disk filled: what was flushed before the cut reads normally
+    raise DataError(f"{note} (a copy cut short or a damaged disk; the data cannot be read)",
+                    path=path)
+
+
+TRUNCATED_OPEN_TIMEOUT_S = 5.0
+"""How long a truncated file may take to open (in a child process, killed after it): a file cut
+after its flushed part (a full disk) opens at once; one cut inside its metadata makes HDF5 retry
+for tens of minutes."""
+
+
+def _swmr_opens_within(path: Path, timeout_s: float) -> bool:
+    """Whether a SWMR open of ``path`` and a walk of all its objects (every metadata read a reader
+    makes) succeed within ``timeout_s``: tried in a child process, killed on timeout, since the
+    HDF5 library's retries cannot be interrupted in-process."""
+    code = ("import sys, h5py\n"
+            "with h5py.File(sys.argv[1], 'r', swmr=True) as f:\n"
+            "    f.visititems(lambda name, obj: obj.shape if hasattr(obj, 'shape') else None)\n")
+    try:
+        proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                              timeout=timeout_s, check=False)
+    except subprocess.TimeoutExpired:
+        return False
+    return proc.returncode == 0
 
 
 def _open(path: Path) -> h5py.File:
-    """Open read-only, SWMR when the file allows it (see the module docstring); a truncated file is
-    refused at once (:func:`_check_not_truncated`)."""
-    _check_not_truncated(path)
+    """Open read-only, SWMR when the file allows it (see the module docstring); the caller has
+    checked for truncation (:func:`_check_not_truncated`)."""
     try:
         return h5py.File(path, "r", swmr=True)
     except OSError as swmr_exc:
