@@ -310,7 +310,8 @@ class StaleReadingGuard:
 
     def feed(self, t_s: np.ndarray, channels: Iterable[np.ndarray]) -> StaleReadingError | None:
         """Judge one block; returns the error on the block that trips (then call :meth:`halt`
-        after making the fault visible), else None."""
+        before making the fault visible: the safe state that follows the fault releases the load,
+        and a later halt would stop that release), else None."""
         t = np.asarray(t_s, dtype=np.float64).ravel()
         if t.size == 0 or self._trip is not None:
             return None

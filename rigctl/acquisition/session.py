@@ -21,6 +21,7 @@ first two are in the run file. A device error in any thread is kept and re-raise
 from __future__ import annotations
 
 import logging
+import math
 import queue
 import threading
 import time
@@ -40,6 +41,9 @@ from rigctl.storage import RunWriter
 
 _log = logging.getLogger(__name__)
 
+STAGE_RETRY_S = 1.0
+"""A stage whose position read failed is asked again after this long (each failed read costs
+its command timeout, which would slow the force recording)."""
 _QUEUE_PUT_TIMEOUT_S = 0.5
 _FRAME_BATCH = 32
 """Most consecutive frames written in one call."""
@@ -126,6 +130,7 @@ class Acquisition:
         )
         self.force_guard = force_guard
         self.stale_guard = stale_guard
+        self._stage_retry_at: dict[str, float] = {}
         self.publisher = publisher or Publisher()
         self.clock = ClockMap()
         self.stats = AcquisitionStats()
@@ -285,7 +290,27 @@ class Acquisition:
             self._fail(exc, "daq thread (forces, probes, stage positions)")
 
     def _positions(self) -> tuple[float, float]:
-        return (self.devices.tangential_stage.position_m(), self.devices.normal_stage.position_m())
+        """Both stage positions; a stage that does not answer gives NaN (a missing value) and is
+        asked again only after STAGE_RETRY_S, so that a dead or corrupting stage never stops the
+        force recording (the safe state's release is recorded through to the end)."""
+        return (self._position("tangential", self.devices.tangential_stage),
+                self._position("normal", self.devices.normal_stage))
+
+    def _position(self, key: str, stage: Any) -> float:
+        now = time.monotonic()
+        if now < self._stage_retry_at.get(key, 0.0):
+            return math.nan
+        try:
+            x = float(stage.position_m())
+        except Exception as exc:
+            first = key not in self._stage_retry_at
+            self._stage_retry_at[key] = now + STAGE_RETRY_S
+            if first:
+                self.stats.errors.append(f"{key} stage position unavailable: {exc}")
+                _log.error("%s stage position unavailable (recorded as NaN): %s", key, exc)
+            return math.nan
+        self._stage_retry_at.pop(key, None)
+        return x
 
     def _handle_block(self, block: DaqBlock) -> None:
         cmap = self.devices.daq.channel_map
@@ -321,8 +346,10 @@ class Acquisition:
         if self.stale_guard is not None:
             frozen = self.stale_guard.feed(t, (block.fx_N, block.fy_N, block.fz_N))
             if frozen is not None:
-                self._fail(frozen, "DAQ watchdog")  # first: procedures stop issuing moves
+                # halt before the fault is raised: the procedure's safe state (the load release)
+                # follows the fault, and a halt after it would stop the release half-way
                 self.stale_guard.halt()
+                self._fail(frozen, "DAQ watchdog")
         dropped = int(block.dropped_total - self._last_dropped_total)
         self._last_dropped_total = int(block.dropped_total)
         n = int(t.shape[0])
