@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import signal
 import sys
 import time
@@ -66,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from rigctl.rigs import open_rig, parse_speed
     from rigctl.storage.layout import RunDescription
 
+    early = _EarlySignals()
     protocol, origin = _protocol(args)
     if args.list_params:
         for d in protocol.params:
@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("dry run: nothing moved")
             return 0
-        _install_signals(runner, rig)
+        _install_signals(runner, rig, early)
         outcome = runner.run()
     if sys.stderr.isatty():
         print(file=sys.stderr)
@@ -162,8 +162,28 @@ def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
     return lambda acq: pacer.follow(lambda: acq.t_s)
 
 
-def _install_signals(runner: object, rig: object) -> None:
-    """Ctrl-C/SIGTERM abort (a second Ctrl-C: emergency stop); SIGUSR1 pause, SIGUSR2 resume."""
+class _EarlySignals:
+    """Pause/resume asked before the run exists (while the rig starts): kept, applied at the start.
+
+    Installed before anything opens or moves, so that SIGUSR1/SIGUSR2 never kill the command
+    (their default action) and a pause asked early is not lost."""
+
+    def __init__(self) -> None:
+        self.paused = False
+        signal.signal(signal.SIGUSR1, self._pause)
+        signal.signal(signal.SIGUSR2, self._resume)
+
+    def _pause(self, signum: int, frame: FrameType | None) -> None:
+        self.paused = True
+
+    def _resume(self, signum: int, frame: FrameType | None) -> None:
+        self.paused = False
+
+
+def _install_signals(runner: object, rig: object, early: _EarlySignals | None = None) -> None:
+    """Ctrl-C/SIGTERM abort; a second one escalates to the emergency stop of both stages (said on
+    the terminal; the run still ends in the runner, which records the outcome and closes the file
+    with its status); SIGUSR1 pause, SIGUSR2 resume."""
     from experiments.runner import Runner
 
     assert isinstance(runner, Runner)
@@ -176,13 +196,17 @@ def _install_signals(runner: object, rig: object) -> None:
                   file=sys.stderr)
             runner.controls.abort("interrupted (Ctrl-C)" if signum == signal.SIGINT
                                   else f"terminated (signal {signum})")
-        else:
-            for stage in (runner.devices.tangential_stage, runner.devices.normal_stage):
-                with contextlib.suppress(Exception):
-                    stage.emergency_stop()
-            os._exit(130)
+            return
+        print("\nsecond interrupt: EMERGENCY STOP of both stages; the run file is closed with "
+              "its status (a load the stop leaves on is reported)", file=sys.stderr)
+        for stage in (runner.devices.tangential_stage, runner.devices.normal_stage):
+            with contextlib.suppress(Exception):
+                stage.emergency_stop()
+        runner.controls.abort("interrupted twice (Ctrl-C): emergency stop")
 
     signal.signal(signal.SIGINT, on_int)
     signal.signal(signal.SIGTERM, on_int)
     signal.signal(signal.SIGUSR1, lambda s, f: runner.controls.pause())
     signal.signal(signal.SIGUSR2, lambda s, f: runner.controls.resume())
+    if early is not None and early.paused:
+        runner.controls.pause()

@@ -104,6 +104,51 @@ def test_ctrl_c_brings_the_rig_to_a_safe_state_and_records_aborted(tmp_path):
     assert abs(d["fn_N"][-1]) < 1.0  # and the load was released before the file closed
 
 
+def test_a_second_ctrl_c_escalates_to_the_emergency_stop_and_still_closes_the_file(tmp_path):
+    """Before: the second Ctrl-C left the file 'running' with no end time and Fn at 299 N."""
+    out = tmp_path / "ctrlc2.h5"
+    proc = start("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT)
+    try:
+        wait_for_samples(out, 20 * 1024, proc)
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "EMERGENCY STOP" in stderr
+    assert entry_text(out, "status") == "aborted"  # closed with its status, not 'running'
+    assert "Ctrl-C" in entry_text(out, "error")
+    with RunReader(out) as r:
+        assert "safe_state" in [e.name for e in r.events()]
+
+
+def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
+    """Pause/resume asked before the run exists are kept (before: exit -10, no file)."""
+    out = tmp_path / "usr1.h5"
+    proc = start("run", "tlre", "--speed", "max", "--no-camera", "--out", str(out), *SHORT)
+    try:
+        deadline = time.monotonic() + 60
+        while proc.poll() is None and time.monotonic() < deadline and not out.exists():
+            if os.path.exists(f"/proc/{proc.pid}/status"):
+                with open(f"/proc/{proc.pid}/status") as fh:
+                    caught = next((ln for ln in fh if ln.startswith("SigCgt:")), "SigCgt: 0")
+                if int(caught.split()[1], 16) & (1 << (signal.SIGUSR1 - 1)):
+                    break  # the command has installed its handler: send now, before the rig runs
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGUSR1)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGUSR2)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    assert entry_text(out, "status") == "completed"
+
+
 def test_sigkill_leaves_a_readable_file_missing_at_most_half_a_second(tmp_path):
     out = tmp_path / "killed.h5"
     proc = start("run", "tlre", "--speed", "1", "--out", str(out), *SHORT)
