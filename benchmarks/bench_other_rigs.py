@@ -4,14 +4,16 @@
 
 Each case is a rig drawn at random, far from this rig's preset: normal force 0.5 N to 5 kN, drive
 stiffness 1e2 to 1e7 N/m, interface 0.5 to 20 times stiffer, mass 1 g to 1 kg, friction 0.1 to 0.8
-with a 5 to 40 % static-kinetic gap, 20 interface elements, 2 kHz sampling and noise at 0.5 % of
-the force (sensor) and 2 % of the slip distance (probes). Its campaign runs the protocols that
+with a 5 to 40 % static-kinetic gap, 5 to 40 interface elements, sampling at 500 Hz to 5 kHz and
+noise at 0.5 % of the force (sensor) and 2 % of the slip distance (probes) times a factor of 0.5
+to 3. A rig whose tlre campaign shows fewer than MIN_EVENTS slips is drawn again (no stick-slip to
+compare). Its campaign runs the protocols that
 reveal the hidden effects (tlre always; velocity steps, slide-hold-slide or a force sweep at 0.6
 to 1.6 times the rig's own load where the effects need them) at a drive velocity that gives about
-3 s per stick cycle. A case
-hides nothing (control), one effect, or two, each at its typical magnitude (default minus off
-value, ``scales_with`` quantities carried to the rig: the same rule the workbench uses for its
-starting values, applied here to make the truth, with the magnitude drawn in [0.7, 1.5]).
+3 s per stick cycle. A case hides nothing (control), two effects, one, or two (cycling in that
+order), each at its typical magnitude (default minus off value, ``scales_with`` quantities carried
+to the rig: the same rule the workbench uses for its starting values, applied here to make the
+truth, with the magnitude drawn in [0.7, 1.5]).
 
 A case is a **hit** when ``--auto`` adds exactly the hidden effects (either order) and ends at most
 at half the baseline error (a control: adds nothing). Figures are printed per case and summed;
@@ -45,7 +47,13 @@ probes this generator does not model at a realistic resolution); interface_dampi
 rig's data the drive damping C0 is fitted, and a damper between mass and ground is then the same
 physics as one in the drive path, up to C0 v_stage: the data cannot tell them apart)."""
 SAMPLE_RATE_HZ = 2000.0
-N_ELEMENTS = 20
+"""The rate effect magnitudes are scaled at (a case samples at its own rate)."""
+RATE_RANGE_HZ = (500.0, 5000.0)
+ELEMENTS_RANGE = (5, 40)
+NOISE_FACTOR_RANGE = (0.5, 3.0)
+MIN_EVENTS = 10
+HIDDEN_PATTERN = (0, 2, 1, 2)
+"""Hidden effects per case, cycling: the two-effect cases are the hard ones."""
 
 
 def draw_rig(rng: np.random.Generator) -> dict[str, float]:
@@ -59,7 +67,12 @@ def draw_rig(rng: np.random.Generator) -> dict[str, float]:
     return {"fn_N": fn, "k0_N_per_m": k0, "kts_N_per_m": kts, "m_kg": m, "mu_s": mu_s,
             "mu_k": mu_k, "mu_smax": mu_s * float(rng.uniform(1.0, 1.3)),
             "kt0_N_per_m": kts * float(rng.uniform(1.0, 2.0)),
-            "c0_N_s_per_m": 2.0 * zeta * math.sqrt(k0 * m), "n_elements": N_ELEMENTS}
+            "c0_N_s_per_m": 2.0 * zeta * math.sqrt(k0 * m),
+            "n_elements": int(rng.integers(ELEMENTS_RANGE[0], ELEMENTS_RANGE[1] + 1))}
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(10 ** rng.uniform(math.log10(lo), math.log10(hi)))
 
 
 def _scale_of(rig: dict[str, float], v: float) -> DataScale:
@@ -90,8 +103,9 @@ SWEEP_FACTORS = (0.6, 0.8, 1.0, 1.3, 1.6)
 """A force sweep of another rig spans its own load (the library's sweep steps this rig's 50 N)."""
 
 
-def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int) -> list[Any]:
-    sim = Simulator(model, sample_rate_hz=SAMPLE_RATE_HZ)
+def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
+           rate_hz: float) -> list[Any]:
+    sim = Simulator(model, sample_rate_hz=rate_hz)
     out = []
     for j, f in enumerate(SWEEP_FACTORS):
         res = sim.run(Drive.constant(fn_N * f, v, 30.0), noise=noise, seed=seed * 1000 + j,
@@ -104,28 +118,18 @@ def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int) -> l
 
 def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed * 7919 + i)
-    rig = draw_rig(rng)
-    n_hidden = (0, 1, 1, 2)[i % 4]
+    n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
     hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
-    keff = 1.0 / (1.0 / rig["k0_N_per_m"] + 1.0 / rig["kts_N_per_m"])
-    drop = 2.0 * (rig["mu_s"] - rig["mu_k"]) * rig["fn_N"]
-    v = drop / keff / 3.0  # about 3 s per stick cycle
-    values = {e: hidden_values(e, rig, v, float(rng.uniform(0.7, 1.5))) for e in hidden}
-    params = {k: val for k, val in rig.items() if k != "fn_N"}
-    model = build_model("paper", effects=list(hidden), params=params, effect_params=values)
-    noise = NoiseModel(ft_rms_N=0.005 * rig["mu_s"] * rig["fn_N"],
-                       fn_rms_N=0.002 * rig["fn_N"], force_lsb_N=1e-4 * rig["mu_s"] * rig["fn_N"],
-                       probe_rms_m=0.02 * drop / keff, probe_lsb_m=0.005 * drop / keff,
-                       stage_lsb_m=0.002 * drop / keff)
-    protocols = ["tlre", *sorted({PROTOCOL_FOR_EFFECT[e] for e in hidden} - {"tlre"})]
-    runs = []
-    for k, proto in enumerate(protocols):
-        if proto == "force_sweep":
-            runs += _sweep(model, rig["fn_N"], v, noise, seed * 100 + k)
-            continue
-        runs += simulate_campaign(model, proto, seed=seed * 100 + k, noise=noise,
-                                  sample_rate_hz=SAMPLE_RATE_HZ, fn_N=rig["fn_N"],
-                                  velocity_m_s=v, duration_scale=1.0)
+    for _attempt in range(20):
+        rig = draw_rig(rng)
+        rate_hz = _log_uniform(rng, *RATE_RANGE_HZ)
+        noise_factor = _log_uniform(rng, *NOISE_FACTOR_RANGE)
+        runs, protocols = _campaign(rng, rig, hidden, rate_hz, noise_factor, seed)
+        tlre = prepare_dataset([r for r in runs if r.source.startswith("tlre")])
+        if tlre.n_events >= MIN_EVENTS:
+            break
+    else:
+        raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
     t0 = time.perf_counter()
     ds = prepare_dataset(runs)
     diag = diagnose(ds, ModelChoice("paper"), auto=True, workers=workers)
@@ -136,10 +140,37 @@ def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
     base_err, final_err = diag.steps[0].error, diag.final_model.error
     hit = sorted(final) == sorted(hidden) and (not hidden or final_err <= 0.5 * base_err)
     return {"case": i, "hidden": list(hidden), "final": final, "added": added,
+            "rate_hz": round(rate_hz), "noise_factor": round(noise_factor, 2),
             "removed": removed, "baseline_error": base_err, "final_error": final_err,
             "hit": hit, "wall_s": wall, "n_events": ds.n_events,
             "unexplained": diag.rounds[-1].verdict.unexplained,
             "rig": {k: float(f"{val:.3g}") for k, val in rig.items()}, "protocols": protocols}
+
+
+def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str, ...],
+              rate_hz: float, noise_factor: float, seed: int) -> tuple[list[Any], list[str]]:
+    keff = 1.0 / (1.0 / rig["k0_N_per_m"] + 1.0 / rig["kts_N_per_m"])
+    drop = 2.0 * (rig["mu_s"] - rig["mu_k"]) * rig["fn_N"]
+    v = drop / keff / 3.0  # about 3 s per stick cycle
+    values = {e: hidden_values(e, rig, v, float(rng.uniform(0.7, 1.5))) for e in hidden}
+    params = {k: val for k, val in rig.items() if k != "fn_N"}
+    model = build_model("paper", effects=list(hidden), params=params, effect_params=values)
+    f = noise_factor
+    noise = NoiseModel(ft_rms_N=f * 0.005 * rig["mu_s"] * rig["fn_N"],
+                       fn_rms_N=f * 0.002 * rig["fn_N"],
+                       force_lsb_N=1e-4 * rig["mu_s"] * rig["fn_N"],
+                       probe_rms_m=f * 0.02 * drop / keff, probe_lsb_m=0.005 * drop / keff,
+                       stage_lsb_m=0.002 * drop / keff)
+    protocols = ["tlre", *sorted({PROTOCOL_FOR_EFFECT[e] for e in hidden} - {"tlre"})]
+    runs: list[Any] = []
+    for k, proto in enumerate(protocols):
+        if proto == "force_sweep":
+            runs += _sweep(model, rig["fn_N"], v, noise, seed * 100 + k, rate_hz)
+            continue
+        runs += simulate_campaign(model, proto, seed=seed * 100 + k, noise=noise,
+                                  sample_rate_hz=rate_hz, fn_N=rig["fn_N"],
+                                  velocity_m_s=v, duration_scale=1.0)
+    return runs, protocols
 
 
 def main(argv: list[str] | None = None) -> int:

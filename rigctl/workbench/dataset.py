@@ -27,6 +27,7 @@ from rigctl.workbench.feature_info import (
     UNIT_FLOOR,
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
+from rigctl.workbench.long_records import WINDOW_KEY
 from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.rig_description import RigDescription, campaign_description
 from rigctl.workbench.signals import FloatArray
@@ -170,7 +171,7 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None)
     det = DetectionSettings.from_signal(run.ft_N)
     probes = probe_range(run, delta_measured)
     valid = probes.delta_valid if probes.any_over else None
-    slips = detect_slips(t, run.ft_N, run.delta_m, det, valid)
+    slips = detect_slips(t, run.ft_N, run.delta_m, det, valid, v_drive_m_s=prof.velocity_at(t))
     read = ReadSettings(det, _settle_time(t, slips.i_end, slips.i_peak))
     events = extract_events(
         run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips, valid
@@ -364,6 +365,8 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
         pr = prepare_run(run, name, rig.delta_measured)
+        if WINDOW_KEY in run.metadata:
+            notes.append(run.metadata[WINDOW_KEY])
         notes.extend(pr.notes)
         if pr.events.n == 0:
             notes.append(f"{name}: no slip detected (stick-slip absent or below the noise)")

@@ -10,7 +10,9 @@ same event, whose direction is that of its first drop. The threshold is
 and measurement are read with the same eyes. Drops are counted in the direction of loading
 (|Ft| falls), so a reversed run works too. A drop that is only a few thresholds large must come with
 a forward jump of the interface displacement delta (a real slip moves the interface; an unloading does
-not) when delta carries a signal.
+not) when delta carries a signal. Where the drive velocity is given, a drop while the stage moves
+against the force (a reciprocating rig's stroke reversal: the force falls through zero as the stage
+turns back, however fast) is an unloading, not a slip.
 """
 
 from __future__ import annotations
@@ -64,11 +66,13 @@ def detect_slips(
     delta_m: FloatArray | None,
     settings: DetectionSettings,
     delta_valid: np.ndarray | None = None,
+    v_drive_m_s: FloatArray | None = None,
 ) -> SlipIndices:
     """Find slip events in a force record (see the module docstring).
 
     Where ``delta_valid`` is False (a probe over range) delta cannot confirm a small drop, which is
-    then judged by the force alone.
+    then judged by the force alone. ``v_drive_m_s`` (the stage velocity per sample, e.g. from the
+    simplified drive) rejects drops while the stage moves against the force (stroke reversals).
     """
     n = ft_N.shape[0]
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
@@ -109,6 +113,8 @@ def detect_slips(
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
             continue
+        if v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s):
+            continue
         if (size < settings.confirm_factor * thr and d_informative and delta_m is not None
                 and (delta_valid is None
                      or delta_valid[max(0, i_pk - w) : min(n, i_end + gap)].all())):
@@ -122,3 +128,10 @@ def detect_slips(
     return SlipIndices(
         np.array(peaks, dtype=np.intp), np.array(ends, dtype=np.intp), np.array(signs, np.int8)
     )
+
+
+def _against_the_force(v_drive_m_s: FloatArray, i_pk: int, i_end: int, sign: int) -> bool:
+    """The stage moves against the force over the drop: an unloading by a stroke reversal (a slip
+    happens while the drive pushes the way the force points; a stage at rest is not judged)."""
+    v = sign * v_drive_m_s[i_pk : i_end + 1]
+    return bool(v.size) and float(np.mean(v)) < 0.0

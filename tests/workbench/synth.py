@@ -62,7 +62,30 @@ def sawtooth_run(
     ft = sign * (ft + ring) + rng.normal(0.0, noise_N, t.size)
     x = velocity_m_s * np.clip(t - t_load_start_s, 0.0, None)
     run = MeasuredRun(
-        t_s=t, x_stage_m=x, fn_N=fn_N + rng.normal(0.0, 0.2, t.size), ft_N=ft,
+        t_s=t, x_stage_m=sign * x, fn_N=fn_N + rng.normal(0.0, 0.2, t.size), ft_N=ft,
         d1_m=sign * delta + rng.normal(0.0, 1e-8, t.size), d2_m=np.zeros_like(t), source=source,
     )
     return run, np.array(slips)
+
+
+ANOTHER_RIG = {"k0_N_per_m": 2e4, "kts_N_per_m": 2e5, "m_kg": 0.01, "mu_s": 0.5, "mu_k": 0.4,
+               "mu_smax": 0.55, "kt0_N_per_m": 3e5, "c0_N_s_per_m": 0.28, "n_elements": 10}
+"""A rig that is not this one: soft drive, 10 N, damping ratio 1 %, 0.5 s stick cycles."""
+ANOTHER_RIG_FN_N = 10.0
+
+
+def another_rig_record(duration_s: float, rate_hz: float = 500.0, cycle_s: float = 0.5,
+                       source: str = "long.csv") -> MeasuredRun:
+    """A record of :data:`ANOTHER_RIG` simulated by the paper model at ``rate_hz``."""
+    from rigctl.model import Drive, Simulator, build_model
+    from rigctl.model.noise import NoiseModel
+
+    r = ANOTHER_RIG
+    keff = 1.0 / (1.0 / r["k0_N_per_m"] + 1.0 / r["kts_N_per_m"])
+    v = 2.0 * (r["mu_s"] - r["mu_k"]) * ANOTHER_RIG_FN_N / keff / cycle_s
+    res = Simulator(build_model("paper", params=dict(r)), sample_rate_hz=rate_hz).run(
+        Drive.constant(ANOTHER_RIG_FN_N, v, duration_s),
+        noise=NoiseModel(ft_rms_N=0.01, fn_rms_N=0.01), seed=1, record_elements=False)
+    run = res.to_measured()
+    run.source = source
+    return run

@@ -97,3 +97,37 @@ def test_a_small_drop_without_a_delta_jump_is_not_a_slip():
     d = run.delta_m.copy()
     d[5000:] += 2e-6  # the same drop with the interface jumping forward is a slip
     assert detect_slips(run.t_s, ft, d, det).n == 1
+
+
+def _reciprocating(rate_hz: float = 200.0, with_slips: bool = False) -> tuple[np.ndarray, ...]:
+    """A stroke back and forth with elastic loading to a plateau and fast unloading at each reversal
+    (as on a reciprocating tribometer): Ft falls through zero within a few samples as the stage
+    turns back, a drop far beyond the threshold that is no slip. With ``with_slips``, forward
+    strokes carry stick-slip drops of 0.4 N."""
+    t = np.arange(0.0, 20.0, 1.0 / rate_hz)
+    v = np.where((t // 2.0) % 2 == 0, 1e-4, -1e-4)  # 2 s strokes at 0.1 mm/s
+    ft = np.empty_like(t)
+    f, k, level = 0.0, 2e5, 2.0  # 200 N/mm: the reversal unloads 4 N in 20 um of travel (0.2 s)
+    for i in range(t.size):
+        f = float(np.clip(f + k * v[i] / rate_hz, -level, level))
+        if with_slips and v[i] > 0 and f >= level - 1e-9 and (i % int(0.5 * rate_hz)) == 0:
+            f -= 0.4
+        ft[i] = f
+    rng = np.random.default_rng(3)
+    return t, ft + 0.003 * rng.standard_normal(t.size), v
+
+
+@pytest.mark.parametrize("rate_hz", [200.0, 2000.0])
+def test_a_stroke_reversal_is_an_unloading_not_a_slip(rate_hz):
+    t, ft, v = _reciprocating(rate_hz)
+    det = DetectionSettings(threshold_N=0.1)
+    assert detect_slips(t, ft, None, det).n > 0  # without the drive each reversal reads as a slip
+    assert detect_slips(t, ft, None, det, v_drive_m_s=v).n == 0
+
+
+def test_slips_of_a_reciprocating_record_are_still_found():
+    t, ft, v = _reciprocating(2000.0, with_slips=True)
+    det = DetectionSettings(threshold_N=0.1)
+    slips = detect_slips(t, ft, None, det, v_drive_m_s=v)
+    assert slips.n >= 8
+    assert np.all(v[slips.i_peak] > 0) and np.all(slips.sign > 0)
