@@ -37,9 +37,11 @@ def run_analyse(args: argparse.Namespace) -> int:
     from rigctl.analysis.pipeline import analyse_campaign
     from rigctl.analysis.progress import Progress
     from rigctl.analysis.report import campaign_json, write_report
+    from rigctl.io.outputs import check_output_folder
 
     progress = Progress(False if args.json else None)
     out = args.out if args.out is not None else _default_out(args.data[0])
+    check_output_folder(out, "--out")
     result = analyse_campaign(args.data, progress=progress)
     index, js = write_report(result, out, progress)
     if args.json:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rigctl.errors import UsageError
+from rigctl.io.outputs import check_output_file
 from rigctl.status import RunStatus
 
 # numpy, h5py and the storage layer are imported inside the commands: `rigctl --help` and the other
@@ -28,6 +29,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     export.add_argument("run", type=Path, metavar="RUN.h5", help="HDF5 run file")
     export.add_argument("--csv", type=Path, required=True, metavar="OUT.csv", help="CSV to write")
+    export.add_argument("--force", action="store_true",
+                        help="replace an existing CSV (never a file being written)")
     export.set_defaults(func=run_export)
 
     imp = subparsers.add_parser(
@@ -55,6 +58,7 @@ def run_export(args: argparse.Namespace) -> int:
 
     _require_suffix(args.run, RUN_FILE_SUFFIXES, "RUN")
     _require_suffix(args.csv, CSV_SUFFIXES, "--csv")
+    check_output_file(args.csv, "--csv", force=args.force)
     with RunReader(args.run) as reader:
         run = reader.to_measured()
     write_csv(args.csv, run)
@@ -69,8 +73,7 @@ def run_import(args: argparse.Namespace) -> int:
 
     _require_suffix(args.csv, CSV_SUFFIXES, "FILE")
     _require_suffix(args.out, RUN_FILE_SUFFIXES, "--out")
-    if args.out.exists() and not args.force:
-        raise UsageError(f"--out {args.out} already exists; use --force to replace it")
+    check_output_file(args.out, "--out", force=args.force)
     run = read_csv(args.csv)
     write_measured_run(
         args.out,
@@ -97,10 +100,21 @@ def run_info(args: argparse.Namespace) -> int:
         with RunReader(path) as reader:
             summary = reader.summary().__dict__
     if args.json:
-        print(json.dumps(summary, indent=2, default=str))
+        print(json.dumps(_json_safe(summary), indent=2, default=str, allow_nan=False))
     else:
         sys.stdout.write(format_summary(summary))
     return 0
+
+
+def _json_safe(obj: Any) -> Any:
+    """NaN and infinities as null: JSON has no NaN (a run killed before its end time has one)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_json_safe(v) for v in obj]
+    return obj
 
 
 def format_summary(s: dict[str, Any]) -> str:

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from rigctl.errors import UsageError
+from rigctl.io.outputs import check_output_folder
 
 # numpy, scipy, the engine and matplotlib are imported inside the commands.
 
@@ -92,9 +93,11 @@ def _choice(args: argparse.Namespace) -> Any:
 
 
 def _load(args: argparse.Namespace) -> list[Any]:
+    """The runs named, long records cut into windows (rigctl.workbench.long_records)."""
     from rigctl.io.load import load_runs
+    from rigctl.workbench.long_records import window_long_runs
 
-    return load_runs([str(p) for p in args.data])
+    return window_long_runs(load_runs([str(p) for p in args.data]))
 
 
 def _progress(args: argparse.Namespace) -> Any:
@@ -119,6 +122,8 @@ def run_compare(args: argparse.Namespace) -> int:
     from rigctl.workbench.report import write_compare_report
 
     choice = _choice(args)
+    if args.report:
+        check_output_folder(args.report, "--report")
     runs = _load(args)
     cmp = compare(runs, choice, identify=not args.no_fit, progress=_progress(args))
     if args.report:
@@ -175,6 +180,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
             raise UsageError(f"unknown candidate '{name}' (known: {', '.join(sorted(known))})")
     if not candidates:
         raise UsageError("no candidate effects left to try")
+    if args.report:
+        check_output_folder(args.report, "--report")
     runs = _load(args)
     dataset = prepare_dataset(runs)
     progress = _progress(args)

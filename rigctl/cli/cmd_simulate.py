@@ -8,7 +8,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from rigctl.errors import UsageError
+from rigctl.io.outputs import check_output_file
 from rigctl.model import Drive, ModelSpec, Simulator, build_model
 from rigctl.model.drive import MAX_NORMAL_FORCE_N
 from rigctl.model.plugins import effect_registry
@@ -80,9 +83,20 @@ def model_from_args(args: argparse.Namespace) -> ModelSpec:
         effects.append(name)
         if params:
             eparams[name] = params
-    params = dict(parse_param(t) for t in args.param)
-    return build_model(args.base, effects=effects, params=params, effect_params=eparams,
-                       registry=registry)
+    base: dict[str, float] = {}
+    for text in args.param:
+        k, v = parse_param(text)
+        if k in base:
+            raise UsageError(f"--param {k} is given twice ({base[k]:g} and {v:g})")
+        base[k] = v
+    model = build_model(args.base, effects=effects, params=base, effect_params=eparams,
+                        registry=registry)
+    values = model.values()
+    mu_s, mu_k = values.get("mu_s"), values.get("mu_k")
+    if mu_s is not None and mu_k is not None and not mu_k < mu_s:
+        raise UsageError(f"--param: mu_k = {mu_k:g} is not below mu_s = {mu_s:g}: the model would "
+                         "make no slip")
+    return model
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -99,6 +113,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (reproducible output)")
     p.add_argument("--out", type=Path, default=None, help="run file: .csv or .h5")
     p.add_argument("--plot", type=Path, default=None, help="PNG of Ft(t) and Ft-delta")
+    p.add_argument("--force", action="store_true",
+                   help="replace existing --out/--plot files (never a file being recorded)")
     p.set_defaults(func=run)
 
 
@@ -118,7 +134,6 @@ def write_result(res: SimResult, out: Path, protocol: str) -> None:
     """Write a simulated run as CSV (exchange format) or an HDF5 run file."""
     run = res.to_measured()
     suffix = out.suffix.lower()
-    out.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".csv":
         from rigctl.io.csv_format import write_csv
 
@@ -131,11 +146,38 @@ def write_result(res: SimResult, out: Path, protocol: str) -> None:
         raise UsageError(f"--out {out}: unknown format (use .csv or .h5)")
 
 
+MAX_RATE_HZ = 1e6
+"""Highest --rate: the model's slip takes about 0.1 ms; a MHz already samples it 100 times."""
+MAX_SAMPLES = 200_000_000
+"""Most samples one simulation may return (7 float64 columns: about 11 GB)."""
+ODD_VELOCITY_M_S = 0.1
+"""Above this drive velocity (100 mm/s, 70 times this rig's fastest stage) a warning asks whether
+the unit is right (mm/s typed as m/s)."""
+
+
+def _check_size(drive: Drive, rate: float) -> None:
+    if not 0.0 < rate <= MAX_RATE_HZ:
+        raise UsageError(f"--rate {rate:g} Hz is outside (0, {MAX_RATE_HZ:g}] Hz")
+    n = drive.duration_s * rate
+    if n > MAX_SAMPLES:
+        raise UsageError(
+            f"{drive.duration_s:g} s at {rate:g} Hz is {n:.3g} samples (at most {MAX_SAMPLES:,}, "
+            f"about {MAX_SAMPLES * 7 * 8 / 1e9:.0f} GB): shorten --duration or lower --rate")
+
+
 def run(args: argparse.Namespace) -> int:
     drive = _drive(args)
     rate = _float(args.rate, "--rate")
-    if rate <= 0:
-        raise UsageError(f"--rate must be positive, got {rate:g}")
+    _check_size(drive, rate)
+    for path, option in ((args.out, "--out"), (args.plot, "--plot")):
+        if path is not None:
+            check_output_file(path, option, force=args.force)
+    if args.out is not None and args.out.suffix.lower() not in (".csv", ".h5", ".hdf5", ".nxs"):
+        raise UsageError(f"--out {args.out}: unknown format (use .csv or .h5)")
+    v_max = float(np.max(np.abs(np.diff(drive.x_stage_m) / np.diff(drive.t_s))))
+    if v_max > ODD_VELOCITY_M_S:
+        print(f"warning: drive velocity {v_max:g} m/s is {v_max * 1e3:g} mm/s: is the unit right? "
+              "(velocities are in m/s)", file=sys.stderr)
     model = model_from_args(args)
     sim = Simulator(model, sample_rate_hz=rate)
     t0 = time.perf_counter()

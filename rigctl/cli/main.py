@@ -41,6 +41,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rigctl", description="Stick-slip friction rig: control, record, model.")
+    parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name in COMMAND_MODULES:
@@ -65,9 +66,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     return rc
 
 
+def _version() -> str:
+    """``rigctl X.Y.Z (Python 3.11.x, numpy ..., h5py ..., PySide6 ...)``."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    def v(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "not installed"
+
+    return (f"rigctl {v('rigctl')} (Python {platform.python_version()}, numpy {v('numpy')}, "
+            f"h5py {v('h5py')}, PySide6 {v('PySide6-Essentials')})")
+
+
 def _main(argv: Sequence[str] | None) -> int:
     try:
         parser = build_parser()
+        given = sys.argv[1:] if argv is None else list(argv)
+        if not given:  # bare `rigctl`: the command list, not an error about a missing argument
+            parser.print_help()
+            return 2
         args = parser.parse_args(argv)
         return int(args.func(args))
     except InputError as exc:

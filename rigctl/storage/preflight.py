@@ -40,7 +40,8 @@ def check_output_path(
     """Raise :class:`StorageError` unless ``path`` can be created with ``required_bytes`` to spare.
 
     Checks, in order: the parent folder exists and is a folder; the target is not a folder and does
-    not exist (unless ``overwrite``); the folder is writable by this process; the file system has
+    not exist (unless ``overwrite``), and is never open for writing by another process (a run being
+    recorded, whatever ``overwrite`` says); the folder is writable by this process; the file system has
     ``required_bytes + min_free_bytes`` free. Returns the path.
     """
     target = Path(path)
@@ -53,6 +54,13 @@ def check_output_path(
         raise StorageError("is a folder, not a file name", path=target)
     if target.exists() and not overwrite:
         raise StorageError("already exists (refusing to overwrite a run file)", path=target)
+    if target.exists():
+        from rigctl.io.outputs import writer_of
+
+        holder = writer_of(target)
+        if holder is not None:
+            raise StorageError(f"is being written by process {holder}; it is never replaced "
+                               "(choose another name)", path=target)
     if not os.access(folder, os.W_OK | os.X_OK):
         raise StorageError(f"the folder {str(folder)!r} is not writable", path=target)
     free = shutil.disk_usage(folder).free

@@ -66,7 +66,7 @@ def test_info_accepts_a_csv(csv_file: Path, capsys: pytest.CaptureFixture[str]) 
         (["import", "{tmp}/bad.csv", "--out", "{tmp}/x.h5"], "bad.csv, line 3, column 'fn_N'"),
         (["import", "{csv}", "--out", "{tmp}/exists.h5"], "already exists; use --force"),
         (["import", "{csv}", "--out", "{tmp}/no/dir/x.h5"], "does not exist"),
-        (["export", "{tmp}/exists.h5", "--csv", "{tmp}/no/dir/x.csv"], "folder does not exist"),
+        (["export", "{tmp}/exists.h5", "--csv", "{tmp}/no/dir/x.csv"], "does not exist"),
         (["export", "{tmp}/exists.h5"], "required: --csv"),
     ],
 )
@@ -111,3 +111,18 @@ def test_info_says_when_a_run_was_not_closed(tmp_path: Path, capsys: pytest.Capt
     out = capsys.readouterr().out
     assert "status    running (still being written, or the writer stopped" in out
     assert "64 at 1024 Hz" in out
+
+
+def test_info_json_is_valid_json_where_a_figure_is_undefined(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A one-sample record has no sample rate (NaN); the JSON says null (strict parsers refuse NaN)."""
+    one = tmp_path / "one.csv"
+    one.write_text("t_s,x_stage_m,fn_N,ft_N,d1_m,d2_m\n0,0,0,0,0,0\n")
+    assert main(["info", str(one), "--json"]) == 0
+
+    def refuse(name: str) -> None:
+        raise ValueError(f"{name} in JSON")
+
+    summary = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    assert summary["sample_rate_hz"] is None and summary["n_samples"] == 1

@@ -1,0 +1,130 @@
+"""One output-file policy for every command (docs/reliability.md, "Output files")."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+RIGCTL = [sys.executable, "-m", "rigctl.cli.main"]
+
+
+def _rigctl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*RIGCTL, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def _one_line_error(proc: subprocess.CompletedProcess[str], *words: str) -> None:
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rigctl: error:"), proc.stderr
+    for w in words:
+        assert w in lines[0], lines[0]
+
+
+def test_an_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
+    out = tmp_path / "a.csv"
+    out.write_text("precious")
+    _one_line_error(_rigctl("simulate", "--duration", "1", "--out", str(out)), "already exists",
+                    "--force")
+    assert out.read_text() == "precious"
+    plot = tmp_path / "p.png"
+    plot.write_text("precious")
+    _one_line_error(_rigctl("simulate", "--duration", "1", "--plot", str(plot)), "--plot")
+    assert plot.read_text() == "precious"
+    proc = _rigctl("simulate", "--duration", "1", "--out", str(out), "--force")
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_text().startswith("# ") or "t_s" in out.read_text()
+
+
+def test_export_refuses_an_existing_csv(tmp_path: Path) -> None:
+    run = tmp_path / "r.h5"
+    assert _rigctl("simulate", "--duration", "1", "--out", str(run)).returncode == 0
+    csv = tmp_path / "r.csv"
+    csv.write_text("precious")
+    _one_line_error(_rigctl("export", str(run), "--csv", str(csv)), "already exists")
+    assert csv.read_text() == "precious"
+    assert _rigctl("export", str(run), "--csv", str(csv), "--force").returncode == 0
+
+
+def test_a_missing_folder_is_refused_not_created(tmp_path: Path) -> None:
+    out = tmp_path / "no" / "such" / "a.csv"
+    _one_line_error(_rigctl("simulate", "--duration", "1", "--out", str(out)), "does not exist")
+    assert not (tmp_path / "no").exists()
+
+
+def test_a_report_path_is_checked_before_the_fit(tmp_path: Path) -> None:
+    data = tmp_path / "d.csv"
+    assert _rigctl("simulate", "--duration", "5", "--out", str(data)).returncode == 0
+    not_a_folder = tmp_path / "report.html"
+    not_a_folder.write_text("x")
+    t0 = time.monotonic()
+    _one_line_error(_rigctl("model", "compare", str(data), "--report", str(not_a_folder)),
+                    "not a folder")
+    assert time.monotonic() - t0 < 30.0  # refused at once, not after identifying the model
+
+
+def test_a_file_being_written_is_never_replaced(tmp_path: Path) -> None:
+    target = tmp_path / "live.csv"
+    target.write_text("being recorded\n")
+    holder = subprocess.Popen([sys.executable, "-c",
+                               "import sys, time\nf = open(sys.argv[1], 'a')\n"
+                               "print('open', flush=True)\ntime.sleep(60)\n", str(target)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "open"
+        _one_line_error(_rigctl("simulate", "--duration", "1", "--out", str(target), "--force"),
+                        "being written by process", str(holder.pid))
+        assert target.read_text() == "being recorded\n"
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--duration", "1e9"], ("samples", "shorten --duration")),
+    (["--rate", "1e7"], ("--rate",)),
+    (["--duration", "1", "--param", "mu_k=0.2"], ("mu_k", "not below mu_s")),
+    (["--duration", "1", "--param", "mu_k=0.09", "--param", "mu_k=0.08"], ("given twice",)),
+])
+def test_simulate_refuses_what_the_model_cannot_mean(tmp_path: Path, args: list[str],
+                                                     words: tuple[str, ...]) -> None:
+    _one_line_error(_rigctl("simulate", *args, "--out", str(tmp_path / "x.csv")), *words)
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_an_implausible_velocity_is_warned_about(tmp_path: Path) -> None:
+    proc = _rigctl("simulate", "--duration", "0.2", "--velocity", "0.5")
+    assert proc.returncode == 0, proc.stderr
+    assert "is the unit right" in proc.stderr
+
+
+def test_version_and_bare_command() -> None:
+    proc = _rigctl("--version")
+    assert proc.returncode == 0 and proc.stdout.startswith("rigctl 0."), proc.stdout
+    proc = _rigctl()
+    assert proc.returncode == 2
+    assert "simulate" in proc.stdout and "Traceback" not in proc.stderr
+
+
+def test_run_preflight_never_replaces_a_file_being_recorded(tmp_path: Path) -> None:
+    """`rigctl run --force` and `import --force` go through the storage preflight."""
+    from rigctl.errors import StorageError
+    from rigctl.storage.preflight import check_output_path
+
+    target = tmp_path / "live.h5"
+    target.write_bytes(b"\x89HDF\r\n\x1a\n")
+    holder = subprocess.Popen([sys.executable, "-c",
+                               "import sys, time\nf = open(sys.argv[1], 'r+b')\n"
+                               "print('open', flush=True)\ntime.sleep(60)\n", str(target)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "open"
+        with pytest.raises(StorageError, match="being written by process"):
+            check_output_path(target, overwrite=True)
+    finally:
+        holder.kill()
+        holder.wait()
+    check_output_path(target, overwrite=True)  # released: --force may replace it
