@@ -9,6 +9,10 @@ from typing import Any
 from drivers.validate import bound_problem
 from experiments.errors import PlanError
 
+POSITIVE_UNITS = ("m/s", "m", "N")
+"""Units whose parameters must be above zero (a zero velocity never ends a slide; a zero travel or
+force is no experiment); times may be 0 (no hold)."""
+
 
 @dataclass(frozen=True)
 class ParamDef:
@@ -23,7 +27,10 @@ class ParamDef:
 
     def parse(self, text: str) -> float | int | tuple[float, ...]:
         """A value from the command line; lists are comma-separated."""
-        items = [t.strip() for t in text.split(",") if t.strip()]
+        items = [t.strip() for t in text.split(",")]
+        if len(items) > 1 and not all(items):
+            raise PlanError(f"parameter '{self.name}': empty item in the list {text!r}")
+        items = [t for t in items if t]
         try:
             values = [float(t) for t in items]
         except ValueError:
@@ -33,6 +40,11 @@ class ParamDef:
         for v in values:
             if bound_problem(v):
                 raise PlanError(f"parameter '{self.name}': must be finite, got {text!r}")
+            if v < 0.0:
+                raise PlanError(f"parameter '{self.name}': {v:g} {self.unit} is negative (a "
+                                "magnitude: the protocol sets the direction)")
+            if v == 0.0 and self.unit in POSITIVE_UNITS:
+                raise PlanError(f"parameter '{self.name}': must be above 0 {self.unit}")
         if self.is_list:
             return tuple(values)
         if len(values) != 1:

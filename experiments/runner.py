@@ -28,7 +28,7 @@ from typing import Any
 
 from drivers.safety import ForceGuard, StaleReadingGuard
 from experiments.context import Controls, RigLimits, RunContext
-from experiments.errors import ProtocolAborted
+from experiments.errors import PlanError, ProtocolAborted
 from experiments.params import resolve
 from experiments.protocols import PROTOCOLS, Protocol
 from experiments.steps import PlanState, Step
@@ -91,7 +91,20 @@ def dry_run(
     for i, step in enumerate(steps, 1):
         est = step.plan(state, limits)
         planned.append(PlannedStep(i, step.describe(), est))
-    return Plan(protocol.name, params, tuple(planned)), steps
+    plan = Plan(protocol.name, params, tuple(planned))
+    if plan.duration_s > MAX_PLAN_S:
+        longest = max(planned, key=lambda p: p.estimate_s)
+        raise PlanError(
+            f"protocol {protocol.name}: estimated {plan.duration_s:,.0f} s of rig time "
+            f"({plan.duration_s / 86400:.0f} days; at most {MAX_PLAN_S / 86400:.0f}): step "
+            f"{longest.index} ({longest.description}) takes {longest.estimate_s:,.0f} s: is a "
+            "unit wrong (velocities in m/s, travel in m)?")
+    return plan, steps
+
+
+MAX_PLAN_S = 7 * 86400.0
+"""Longest protocol accepted (a week of rig time): longer is a unit mistake far more often than an
+experiment (a velocity of 1e-12 m/s planned 810,000,102 s)."""
 
 
 def safe_state(ctx: RunContext, reason: str) -> list[str]:

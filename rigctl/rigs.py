@@ -176,7 +176,15 @@ def parse_speed(text: str) -> float:
         raise UsageError(f"--speed must be a number or 'max', got {text!r}") from None
     if not (v > 0 and v < float("inf")):
         raise UsageError(f"--speed must be positive and finite, got {text!r}")
+    if not SPEED_RANGE[0] <= v <= SPEED_RANGE[1]:
+        raise UsageError(f"--speed {text}: a simulated rig runs from real time (1) to "
+                         f"{SPEED_RANGE[1]:g} times faster; use --speed max for as fast as it can")
     return v
+
+
+SPEED_RANGE = (1.0, 1000.0)
+"""Clock factors accepted for a simulated rig: slower than real time serves nobody (the devices'
+timeouts are in host time) and above 1000 the rig is paced by the CPU anyway (``max``)."""
 
 
 @contextlib.contextmanager

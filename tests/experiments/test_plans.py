@@ -45,7 +45,6 @@ def test_paper_defaults():
         ("nlre", {"peak_N": "900"}, ["900 N", "limit 800 N"]),
         ("tlre", {"travel_m": "0.15"}, ["outside the stroke"]),
         ("velocity_steps", {"velocities_m_s": "1e-5,0.01"}, ["velocity 0.01 m/s", "limit"]),
-        ("slide_hold_slide", {"holds_s": "1,-5"}, ["must be >= 0"]),
         ("tlre", {"preload_factor": "0.5"}, ["pre-load factor"]),
     ],
 )
@@ -56,6 +55,12 @@ def test_violations_are_refused_before_anything_moves(name, params, words):
     assert text.startswith("step '")
     for w in words:
         assert w in text
+
+
+def test_a_negative_magnitude_is_refused_at_the_parameter():
+    """Before any step is planned: the parameter is named, not the step it would have broken."""
+    with pytest.raises(PlanError, match="parameter 'holds_s': -5 s is negative"):
+        dry_run(get_protocol("slide_hold_slide"), {"holds_s": "1,-5"}, LIMITS, X0)
 
 
 @pytest.mark.parametrize(

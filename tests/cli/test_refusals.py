@@ -1,0 +1,30 @@
+"""Values the rig cannot mean are refused in the dry run, with one line naming the value."""
+
+from __future__ import annotations
+
+import pytest
+
+from rigctl.cli.main import main
+
+
+@pytest.mark.parametrize(("argv", "words"), [
+    (["run", "tlre", "--dry-run", "--param", "travel_m=-1e-4"], ("travel_m", "negative")),
+    (["run", "tlre", "--dry-run", "--param", "velocity_m_s=0"], ("velocity_m_s", "above 0")),
+    (["run", "force_sweep", "--dry-run", "--param", "forces_N=150,,250"], ("empty item",)),
+    (["run", "tlre", "--dry-run", "--param", "velocity_m_s=1e-12"],
+     ("810,000,102 s", "is a unit wrong")),
+    (["run", "tlre", "--dry-run", "--speed", "0.5"], ("--speed 0.5", "use --speed max")),
+    (["run", "tlre", "--dry-run", "--speed", "1e9"], ("--speed 1e9",)),
+])
+def test_a_value_the_rig_cannot_mean_is_refused(argv: list[str], words: tuple[str, ...],
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("rigctl: error:"), err
+    for w in words:
+        assert w in err, err
+
+
+def test_the_defaults_still_plan(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "force_sweep", "--dry-run", "--param", "forces_N=150,250"]) == 0
+    assert "dry run: nothing moved" in capsys.readouterr().out
