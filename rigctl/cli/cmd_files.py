@@ -61,6 +61,13 @@ def run_export(args: argparse.Namespace) -> int:
     check_output_file(args.csv, "--csv", force=args.force)
     with RunReader(args.run) as reader:
         run = reader.to_measured()
+        s = reader.summary()
+        provenance = {"run.protocol": s.protocol, "run.status": s.status, "run.error": s.error,
+                      "run.start_time": s.start_time, "run.end_time": s.end_time,
+                      "run.software": ", ".join(f"{k} {v}" for k, v in reader.software.items())}
+    for key, value in provenance.items():  # a key the run's own metadata has is kept as it is
+        if value and key not in run.metadata:
+            run.metadata[key] = " ".join(str(value).split())
     write_csv(args.csv, run)
     print(f"wrote {args.csv} ({run.n_samples} samples, {len(run.columns())} columns)")
     return 0
@@ -75,6 +82,7 @@ def run_import(args: argparse.Namespace) -> int:
     _require_suffix(args.out, RUN_FILE_SUFFIXES, "--out")
     check_output_file(args.out, "--out", force=args.force)
     run = read_csv(args.csv)
+    status, error = _imported_status(run.metadata)
     write_measured_run(
         args.out,
         run,
@@ -83,7 +91,12 @@ def run_import(args: argparse.Namespace) -> int:
         operator=args.operator,
         notes=args.notes,
         overwrite=args.force,
+        status=status,
+        error=error,
     )
+    if status != RunStatus.COMPLETED:
+        print(f"note: the original run ended {run.metadata.get('run.status')}: imported as "
+              f"{status} ({error})", file=sys.stderr)
     print(f"wrote {args.out} ({run.n_samples} samples from {args.csv})")
     return 0
 
@@ -104,6 +117,23 @@ def run_info(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(format_summary(summary))
     return 0
+
+
+def _imported_status(metadata: dict[str, str]) -> tuple[RunStatus, str | None]:
+    """The status an imported run keeps from the ``run.status``/``run.error`` an export wrote: a
+    run that did not complete stays so (one never closed, status running, was killed or was still
+    being written, and is imported as aborted)."""
+    original = metadata.get("run.status", "").strip()
+    error = metadata.get("run.error", "").strip()
+    if original in ("", RunStatus.COMPLETED):
+        return RunStatus.COMPLETED, None
+    if original == RunStatus.RUNNING:
+        return RunStatus.ABORTED, ("the original run was not closed when it was exported (killed, "
+                                   "or still being written)")
+    try:
+        return RunStatus(original), error or f"the original run ended {original}"
+    except ValueError:
+        return RunStatus.ABORTED, f"the original run's status was {original!r}"
 
 
 def _json_safe(obj: Any) -> Any:

@@ -36,8 +36,11 @@ def write_measured_run(
     calibration: dict[str, Any] | None = None,
     overwrite: bool = False,
     min_free_bytes: int = DEFAULT_MIN_FREE_BYTES,
+    status: layout.RunStatus = layout.RunStatus.COMPLETED,
+    error: str | None = None,
 ) -> Path:
-    """Write ``run`` (validated first) as a completed run file at ``path``; returns the path."""
+    """Write ``run`` (validated first) as a closed run file at ``path`` with ``status`` (default
+    completed; an import of an aborted run keeps its status); returns the path."""
     target = Path(path)
     run.validate()
     channels = tuple(name for name in run.columns() if name != "t_s")
@@ -63,6 +66,7 @@ def write_measured_run(
             columns = run.columns()
             for start in range(0, run.n_samples, _BLOCK):
                 writer.append_daq({k: v[start : start + _BLOCK] for k, v in columns.items()})
+            writer.close(status, error)
         os.replace(tmp, target)
     except OSError as exc:
         raise StorageError(f"cannot write the run file: {exc}", path=target) from exc

@@ -129,6 +129,14 @@ class RunReader:
         """Samples present in every DAQ dataset."""
         return min(ds.shape[0] for ds in (self._time, *self._channels.values()))
 
+    def unequal_lengths(self) -> dict[str, int]:
+        """The DAQ datasets' lengths when they differ in a closed run (empty otherwise): a run being
+        written grows them one after another, a closed one has them equal unless it is damaged."""
+        lengths = {ds.name: int(ds.shape[0]) for ds in (self._time, *self._channels.values())}
+        if len(set(lengths.values())) <= 1 or self.status == "running":
+            return {}
+        return lengths
+
     @property
     def sample_rate_hz(self) -> float:
         return float(self._file[layout.DAQ].attrs["sample_rate_hz"])
@@ -137,10 +145,31 @@ class RunReader:
         """Samples ``start:stop`` (default all) as ``{"t_s": ..., channel: ...}`` float64 arrays."""
         n = self.n_samples
         stop = n if stop is None else min(stop, n)
-        out: dict[str, FloatArray] = {"t_s": np.asarray(self._time[start:stop], dtype=np.float64)}
+        out: dict[str, FloatArray] = {"t_s": self._read(self._time, start, stop)}
         for name, ds in self._channels.items():
-            out[name] = np.asarray(ds[start:stop], dtype=np.float64)
+            out[name] = self._read(ds, start, stop)
         return out
+
+    def _read(self, ds: h5py.Dataset, start: int, stop: int) -> FloatArray:
+        """``ds[start:stop]`` as float64; a chunk whose checksum fails (the writer stores a
+        Fletcher-32 checksum per chunk) or cannot be read is a DataError naming the dataset and
+        the sample range of the read."""
+        try:
+            return np.asarray(ds[start:stop], dtype=np.float64)
+        except OSError as exc:
+            first = exc
+        # locate the damaged chunk for the message
+        step = ds.chunks[0] if ds.chunks else max(stop - start, 1)
+        bad = (start, stop)
+        for a in range(start - start % step, stop, step):
+            try:
+                ds[max(a, start) : min(a + step, stop)]
+            except OSError:
+                bad = (max(a, start), min(a + step, stop))
+                break
+        what = ("checksum mismatch (the file is corrupted)" if ds.fletcher32
+                else f"unreadable ({first})")
+        raise DataError(f"{ds.name}: samples {bad[0]:,} to {bad[1]:,}: {what}", path=self.path)
 
     def blocks(self) -> dict[str, np.ndarray]:
         """The per-block table for re-timing: ``first_sample``, ``counter``, ``host_time_s``,
@@ -161,6 +190,11 @@ class RunReader:
         ``# key: value`` lines). With ``validate`` a NaN or a non-increasing time raises
         :class:`DataError`.
         """
+        uneven = self.unequal_lengths()
+        if uneven:
+            _log.warning("%s: DAQ datasets of unequal length in a closed run (%s): read to the "
+                         "shortest, %s samples", self.path,
+                         ", ".join(f"{k} {v:,}" for k, v in uneven.items()), f"{self.n_samples:,}")
         columns = self.read_daq()
         missing = [name for name in REQUIRED_COLUMNS if name not in columns]
         if missing:

@@ -482,7 +482,8 @@ def _create_layout(
 
 
 def _growing(group: h5py.Group, name: str, dtype: Any, chunk: int, unit: str = "") -> h5py.Dataset:
-    ds = group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(chunk,), dtype=dtype)
+    ds = group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(chunk,), dtype=dtype,
+                              fletcher32=True)
     if unit:
         ds.attrs["units"] = unit
     return ds
@@ -521,6 +522,7 @@ def _create_camera(f: h5py.File, camera: layout.CameraLayout, start_time: str) -
         chunks=(1, *shape),
         dtype=np.uint8,
         compression=None if camera.compression == "none" else camera.compression,
+        fletcher32=True,
     )
     _growing(group, "time", np.float64, 256, "s").attrs["start"] = start_time
     _growing(group, "seq", np.int64, 256)

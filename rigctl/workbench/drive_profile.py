@@ -102,6 +102,12 @@ class DriveProfile:
         out: FloatArray = self.phase_velocity[self.segment_index(t_rel_s)]
         return out
 
+    def sliding_velocity_at(self, t_rel_s: FloatArray) -> FloatArray:
+        """:meth:`velocity_at`, 0 in holds (a resting stage's line drifts by its noise)."""
+        idx = self.segment_index(t_rel_s)
+        out: FloatArray = np.where(self.phase_is_hold[idx], 0.0, self.phase_velocity[idx])
+        return out
+
     def fn_at(self, t_rel_s: FloatArray) -> FloatArray:
         out: FloatArray = np.interp(t_rel_s, self.t_s, self.fn_N)
         return out

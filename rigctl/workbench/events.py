@@ -97,6 +97,10 @@ def detect_slips(
         d_ok = delta_m[delta_valid]
         d_sigma = noise_sigma(d_ok) if d_ok.size else 0.0
         d_informative = d_ok.size > 0 and float(np.ptp(d_ok)) > 20.0 * d_sigma
+    v_ref = 0.0
+    if v_drive_m_s is not None:
+        moving = np.abs(v_drive_m_s[v_drive_m_s != 0.0])
+        v_ref = float(np.median(moving)) if moving.size else 0.0
     peaks: list[int] = []
     ends: list[int] = []
     signs: list[int] = []
@@ -113,7 +117,7 @@ def detect_slips(
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
             continue
-        if v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s):
+        if v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s, v_ref):
             continue
         if (size < settings.confirm_factor * thr and d_informative and delta_m is not None
                 and (delta_valid is None
@@ -130,8 +134,14 @@ def detect_slips(
     )
 
 
-def _against_the_force(v_drive_m_s: FloatArray, i_pk: int, i_end: int, sign: int) -> bool:
+AGAINST_FRACTION = 0.1
+"""A drop is an unloading when the stage moves against the force faster than this fraction of the
+record's typical drive speed (a stage at rest, or a phase line drifting by its noise, is not)."""
+
+
+def _against_the_force(v_drive_m_s: FloatArray, i_pk: int, i_end: int, sign: int,
+                       v_ref: float) -> bool:
     """The stage moves against the force over the drop: an unloading by a stroke reversal (a slip
-    happens while the drive pushes the way the force points; a stage at rest is not judged)."""
+    happens while the drive pushes the way the force points)."""
     v = sign * v_drive_m_s[i_pk : i_end + 1]
-    return bool(v.size) and float(np.mean(v)) < 0.0
+    return bool(v.size) and float(np.mean(v)) < -AGAINST_FRACTION * v_ref

@@ -48,7 +48,11 @@ def test_import_info_export_round_trip(
 
     back = tmp_path / "back.csv"
     assert main(["export", str(run_file), "--csv", str(back)]) == 0
-    assert back.read_bytes() == csv_file.read_bytes()
+    # the same bytes, plus the provenance lines of the run file (# run.protocol: import, ...)
+    lines = back.read_bytes().splitlines(keepends=True)
+    provenance = [ln for ln in lines if ln.startswith(b"# run.")]
+    assert b"# run.protocol: import\n" in provenance and b"# run.status: completed\n" in provenance
+    assert b"".join(ln for ln in lines if not ln.startswith(b"# run.")) == csv_file.read_bytes()
 
 
 def test_info_accepts_a_csv(csv_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -126,3 +130,29 @@ def test_info_json_is_valid_json_where_a_figure_is_undefined(
 
     summary = json.loads(capsys.readouterr().out, parse_constant=refuse)
     assert summary["sample_rate_hz"] is None and summary["n_samples"] == 1
+
+
+def test_export_keeps_provenance_and_a_killed_run_is_not_reimported_completed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rigctl.io.csv_format import read_csv
+    from rigctl.storage import RunDescription, RunWriter
+    from tests.storage.conftest import block
+
+    path = tmp_path / "killed.h5"
+    w = RunWriter(path, RunDescription(protocol="tlre"))
+    try:
+        w.append_daq(block(0, 2048))
+        w.flush()
+        # exported while never closed: as a run killed by SIGKILL looks
+        assert main(["export", str(path), "--csv", str(tmp_path / "k.csv")]) == 0
+    finally:
+        w.close()
+    meta = read_csv(tmp_path / "k.csv").metadata
+    assert meta["run.protocol"] == "tlre" and meta["run.status"] == "running"
+    assert "rigctl" in meta["run.software"]
+    assert main(["import", str(tmp_path / "k.csv"), "--out", str(tmp_path / "re.h5")]) == 0
+    assert "imported as aborted" in capsys.readouterr().err
+    with RunReader(tmp_path / "re.h5") as r:
+        assert r.status == "aborted"
+        assert "not closed" in r.summary().error
