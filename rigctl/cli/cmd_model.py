@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rigctl.cli.cmd_simulate import add_plugins_argument
 from rigctl.errors import UsageError
 from rigctl.io.outputs import check_output_folder
 
@@ -38,6 +39,7 @@ def _add_common(p: argparse.ArgumentParser) -> None:
                    help="plug-in effect file (repeatable); its effects become available")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", type=Path, metavar="DIR", help="write an HTML + PNG report here")
+    add_plugins_argument(p)
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -65,7 +67,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     dia.add_argument("--workers", type=int, default=None, metavar="N",
                      help="parallel processes (default: the CPUs)")
     dia.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                     help="run the candidate fits on this Dask distributed scheduler")
+                     help="run the candidate fits on this Dask distributed scheduler "
+                          "(tls://host:port with --tls-* on an untrusted network)")
+    dia.add_argument("--tls-ca", type=Path, default=None, metavar="CA.pem",
+                     help="certificate authority of a tls:// scheduler")
+    dia.add_argument("--tls-cert", type=Path, default=None, metavar="CERT.pem",
+                     help="this client's certificate for a tls:// scheduler")
+    dia.add_argument("--tls-key", type=Path, default=None, metavar="KEY.pem",
+                     help="this client's private key for a tls:// scheduler")
     dia.add_argument("--timeout", type=float, default=300.0, metavar="S",
                      help="time limit of one candidate fit in seconds (default 300)")
     dia.set_defaults(func=run_diagnose)
@@ -161,6 +170,35 @@ def _print_compare(cmp: Any) -> None:
         print(f"  - {s}")
 
 
+def scheduler_security(args: argparse.Namespace) -> Any:
+    """The ``distributed.Security`` of ``--tls-ca/--tls-cert/--tls-key`` (None without them).
+
+    A ``tcp://`` scheduler gets pickled tasks unauthenticated and unencrypted, i.e. whoever can
+    reach it runs code in this process's results: fine on localhost, a warning elsewhere."""
+    files = {"--tls-ca": args.tls_ca, "--tls-cert": args.tls_cert, "--tls-key": args.tls_key}
+    given = {k: v for k, v in files.items() if v is not None}
+    address = str(args.scheduler)
+    if not given:
+        host = address.split("://", 1)[-1].rsplit(":", 1)[0].strip("[]")
+        if address.startswith("tcp://") and host not in ("localhost", "127.0.0.1", "::1"):
+            print(f"warning: {address} is plain TCP: tasks go unauthenticated and unencrypted; "
+                  "on an untrusted network use tls:// with --tls-ca, --tls-cert and --tls-key",
+                  file=sys.stderr)
+        return None
+    if len(given) != len(files):
+        missing = ", ".join(k for k in files if k not in given)
+        raise UsageError(f"TLS needs all of --tls-ca, --tls-cert and --tls-key (missing {missing})")
+    for option, path in given.items():
+        if not path.is_file():
+            raise UsageError(f"{option} {path}: no such file")
+    if not address.startswith("tls://"):
+        raise UsageError(f"--tls-* given but --scheduler {address} is not a tls:// address")
+    from distributed import Security
+
+    return Security(tls_ca_file=str(args.tls_ca), tls_client_cert=str(args.tls_cert),
+                    tls_client_key=str(args.tls_key), require_encryption=True)
+
+
 def run_diagnose(args: argparse.Namespace) -> int:
     from rigctl.workbench.compare import compare
     from rigctl.workbench.dataset import prepare_dataset
@@ -190,7 +228,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
         from rigctl.workbench.parallel import CONNECT_TIMEOUT_S, connect
 
         # connect before any fitting: an unreachable cluster is a one-line error at once
-        client = connect(args.scheduler, min(args.timeout, CONNECT_TIMEOUT_S))
+        client = connect(args.scheduler, min(args.timeout, CONNECT_TIMEOUT_S),
+                         security=scheduler_security(args))
     try:
         diag = diagnose(dataset, choice, candidates=candidates, auto=args.auto,
                         workers=args.workers, scheduler=client, progress=progress,

@@ -72,6 +72,13 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="load user effects from a Python file (repeatable)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="override a base parameter (repeatable)")
+    add_plugins_argument(p)
+
+
+def add_plugins_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plugins", action="store_true",
+                   help="also load the effects installed packages register (rigctl.effects entry "
+                        "points; off by default: their code runs only when asked)")
 
 
 def model_from_args(args: argparse.Namespace) -> ModelSpec:

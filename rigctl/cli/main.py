@@ -89,6 +89,12 @@ def _main(argv: Sequence[str] | None) -> int:
             parser.print_help()
             return 2
         args = parser.parse_args(argv)
+        if getattr(args, "plugins", False):
+            from rigctl.model.plugins import enable_entry_points
+
+            loaded = enable_entry_points()
+            print(f"plug-in effects loaded: {', '.join(loaded) or 'none installed'}",
+                  file=sys.stderr)
         return int(args.func(args))
     except InputError as exc:
         print(f"rigctl: error: {exc}", file=sys.stderr)

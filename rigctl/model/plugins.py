@@ -12,6 +12,7 @@ import hashlib
 import importlib.metadata
 import importlib.util
 import math
+import os
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -117,11 +118,29 @@ def entry_point_effects() -> list[type[Effect]]:
     return out
 
 
+ENABLE_ENV = "RIGCTL_PLUGINS"
+"""Set to 1 (``--plugins`` does it for the command and its worker processes) to load the effects
+installed packages register: their code runs only when the user asked for it."""
+
+
+def entry_points_enabled() -> bool:
+    return os.environ.get(ENABLE_ENV, "").strip().lower() in ("1", "yes", "true", "on")
+
+
+def enable_entry_points() -> list[str]:
+    """Enable entry-point effects for this process and its children; the loaded ones as
+    ``name (module:Class)`` for the command to list."""
+    os.environ[ENABLE_ENV] = "1"
+    return [f"{cls.name} ({cls.__module__}:{cls.__qualname__})" for cls in entry_point_effects()]
+
+
 def effect_registry(effect_files: Iterable[str | Path] = ()) -> dict[str, type[Effect]]:
-    """Library + entry-point plug-ins + the given files, by name (files win over entry points)."""
+    """Library + the given files, by name; plus the entry-point plug-ins of installed packages
+    when enabled (:data:`ENABLE_ENV`; files win over entry points)."""
     reg: dict[str, type[Effect]] = dict(LIBRARY)
-    for cls in entry_point_effects():
-        reg[cls.name] = cls
+    if entry_points_enabled():
+        for cls in entry_point_effects():
+            reg[cls.name] = cls
     for f in effect_files:
         for cls in load_effect_file(f):
             reg[cls.name] = cls

@@ -248,13 +248,14 @@ def _kill_all(started: Sequence[Any], running: dict[int, tuple[Any, Connection, 
         conn.close()
 
 
-def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> Any:
-    """A ``distributed.Client`` of the scheduler at ``address`` (SchedulerError if unreachable)."""
+def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, security: Any = None) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` (SchedulerError if unreachable);
+    ``security`` a ``distributed.Security`` for a ``tls://`` scheduler (docs/workbench.md)."""
     from distributed import Client
 
     try:
-        return Client(address, timeout=timeout_s)
-    except (OSError, TimeoutError) as exc:
+        return Client(address, timeout=timeout_s, security=security)
+    except (OSError, TimeoutError, TypeError, ValueError) as exc:  # TypeError: tls:// without TLS
         raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
 
 

@@ -14,6 +14,7 @@ from rigctl.cli.main import main
 from rigctl.io.csv_format import read_csv
 from rigctl.model import Drive, Simulator, build_model
 from rigctl.model.plugins import (
+    ENABLE_ENV,
     ENTRY_POINT_GROUP,
     EffectPluginError,
     effect_registry,
@@ -162,8 +163,22 @@ def installed_example(tmp_path, monkeypatch):
         f"[{ENTRY_POINT_GROUP}]\nmy_effect = {mod}:ThermalKineticFriction\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv(ENABLE_ENV, "1")
     yield dist
     sys.modules.pop(mod, None)
+
+
+def test_entry_points_are_not_loaded_unless_enabled(installed_example, monkeypatch, tmp_path,
+                                                    capsys):
+    monkeypatch.delenv(ENABLE_ENV)
+    assert "my_effect" not in effect_registry()
+    out = tmp_path / "ep.csv"
+    assert main(["simulate", "--duration", "1", "--effect", "my_effect", "--out", str(out)]) == 2
+    assert "my_effect" in capsys.readouterr().err and not out.exists()
+    assert main(["simulate", "--plugins", "--duration", "1", "--effect", "my_effect",
+                 "--out", str(out)]) == 0
+    assert "plug-in effects loaded: my_effect (rigctl_test_effects_pkg:ThermalKineticFriction)" \
+        in capsys.readouterr().err
 
 
 def test_entry_point_effect_is_found_and_usable_by_name(installed_example):
