@@ -111,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
         print(plan.summary())
         if speed != float("inf"):
             print(f"wall time at speed {speed:g}: ~{plan.duration_s / speed:.0f} s")
+        print(_file_size_line(plan.duration_s, adapters.daq_layout(rig.config), camera,
+                              out if out is not None else Path(config.storage.directory) / "x"))
         if args.dry_run:
             print("dry run: nothing moved")
             return 0
@@ -160,6 +162,28 @@ def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
     if pacer is None:
         return None
     return lambda acq: pacer.follow(lambda: acq.t_s)
+
+
+def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:
+    """The run file's size at most (frames uncompressed), refused (UsageError) when the output's
+    file system cannot hold it with the writer's reserve to spare."""
+    import shutil
+
+    from rigctl.storage import estimate_run_bytes
+    from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES
+
+    samples = estimate_run_bytes(duration_s, daq)
+    total = estimate_run_bytes(duration_s, daq, camera)
+    frames = total - samples
+    folder = out.parent if out.parent.is_dir() else Path(".")
+    free = shutil.disk_usage(folder).free
+    text = (f"run file: at most {total / 1e6:,.0f} MB ({samples / 1e6:,.0f} MB of samples"
+            + (f", {frames / 1e6:,.0f} MB of frames before compression" if camera else "")
+            + f"); {free / 1e9:,.1f} GB free in {folder}")
+    if total + DEFAULT_MIN_FREE_BYTES > free:
+        raise UsageError(f"{text}: not enough (with {DEFAULT_MIN_FREE_BYTES / 1e6:.0f} MB to "
+                         "spare): free space, choose another --out, or --no-camera")
+    return text
 
 
 class _EarlySignals:

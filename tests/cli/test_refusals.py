@@ -28,3 +28,18 @@ def test_a_value_the_rig_cannot_mean_is_refused(argv: list[str], words: tuple[st
 def test_the_defaults_still_plan(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "force_sweep", "--dry-run", "--param", "forces_N=150,250"]) == 0
     assert "dry run: nothing moved" in capsys.readouterr().out
+
+
+def test_the_dry_run_states_the_file_size_and_refuses_a_disk_too_small(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+    from collections import namedtuple
+
+    assert main(["run", "slide_hold_slide", "--dry-run", "--no-camera"]) == 0
+    out = capsys.readouterr().out
+    assert "run file: at most 19 MB (19 MB of samples)" in out
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda _p: usage(10**9, 10**9 - 10**8, 10**8))
+    assert main(["run", "slide_hold_slide", "--dry-run"]) == 2  # 4.2 GB of frames at most
+    err = capsys.readouterr().err
+    assert "not enough" in err and "--no-camera" in err and err.count("\n") == 1
