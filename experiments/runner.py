@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -155,22 +154,6 @@ class RunOutcome:
 
 RunProgressFn = Callable[[int, int, str, float, float], None]
 """progress(step_index, n_steps, description, elapsed_device_s, eta_device_s)"""
-
-
-def terminal_progress(speed: float) -> RunProgressFn:
-    """A one-line progress display on stderr with the ETA in rig time and wall time."""
-    last = [0.0]
-
-    def show(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
-        now = time.monotonic()
-        if now - last[0] < 0.5 and i <= n:
-            return
-        last[0] = now
-        wall = eta / speed if speed > 0 else float("nan")
-        print(f"\r[{i}/{n}] {desc[:48]:<48} t={elapsed:7.1f} s  ETA {eta:7.0f} s "
-              f"(~{wall:.0f} s wall)", end="", file=sys.stderr, flush=True)
-
-    return show
 
 
 class Runner:

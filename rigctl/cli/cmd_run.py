@@ -59,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from experiments.errors import PlanError
     from experiments.params import parse_assignments
-    from experiments.runner import Runner, terminal_progress
+    from experiments.runner import Runner
     from rigctl.config import adapters
     from rigctl.config.loader import load_effective_config, to_toml
     from rigctl.rigs import open_rig, parse_speed
@@ -95,14 +95,16 @@ def run(args: argparse.Namespace) -> int:
             metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name,
                       **(origin.metadata() if origin is not None else {})},
         )
+        on_acquisition: list[Callable[[Any], None]] = []
+        pacing = _pacing(rig.pacer)
+        if pacing is not None:
+            on_acquisition.append(pacing)
         runner = Runner(
             protocol, given, rig.devices, rig.limits, out=out,
             daq_layout=adapters.daq_layout(rig.config), camera_layout=camera, description=desc,
             force_limit_N=adapters.force_limit_N(rig.config),
-            progress=terminal_progress(speed if speed != float("inf") else 100.0)
-            if sys.stderr.isatty() else None,
             flush_interval_s=rig.config.storage.flush_interval_s, overwrite=args.force,
-            on_acquisition=_pacing(rig.pacer),
+            on_acquisition=lambda acq: _each(on_acquisition, acq),
         )
         try:
             plan, _ = runner.plan()
@@ -117,7 +119,21 @@ def run(args: argparse.Namespace) -> int:
             print("dry run: nothing moved")
             return 0
         _install_signals(runner, rig, early)
-        outcome = runner.run()
+        bar = None
+        if sys.stderr.isatty():
+            from rigctl.cli.progress import RunProgress
+
+            controls = runner.controls
+            bar = RunProgress([st.estimate_s for st in plan.steps], speed,
+                              lambda: controls.paused)
+            runner.progress = bar.on_step
+            on_acquisition.append(bar.attach)
+        try:
+            with _bar_logging(bar):
+                outcome = runner.run()
+        finally:
+            if bar is not None:
+                bar.close()
     if sys.stderr.isatty():
         print(file=sys.stderr)
     st = outcome.stats
@@ -155,6 +171,22 @@ def _protocol(args: argparse.Namespace) -> tuple[Protocol[Any], ProtocolFile | N
         return get_protocol(args.protocol), None
     except InputError as exc:
         raise UsageError(str(exc)) from None
+
+
+def _each(hooks: list[Callable[[Any], None]], acq: Any) -> None:
+    for hook in hooks:
+        hook(acq)
+
+
+@contextlib.contextmanager
+def _bar_logging(bar: Any) -> Any:
+    if bar is None:
+        yield
+        return
+    from rigctl.cli.progress import warnings_on_their_own_lines
+
+    with warnings_on_their_own_lines():
+        yield
 
 
 def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
@@ -199,9 +231,12 @@ class _EarlySignals:
 
     def _pause(self, signum: int, frame: FrameType | None) -> None:
         self.paused = True
+        print("pause asked while the rig starts: the run will start paused (SIGUSR2 resumes)",
+              file=sys.stderr, flush=True)
 
     def _resume(self, signum: int, frame: FrameType | None) -> None:
         self.paused = False
+        print("resume asked while the rig starts", file=sys.stderr, flush=True)
 
 
 def _install_signals(runner: object, rig: object, early: _EarlySignals | None = None) -> None:
@@ -230,7 +265,19 @@ def _install_signals(runner: object, rig: object, early: _EarlySignals | None = 
 
     signal.signal(signal.SIGINT, on_int)
     signal.signal(signal.SIGTERM, on_int)
-    signal.signal(signal.SIGUSR1, lambda s, f: runner.controls.pause())
-    signal.signal(signal.SIGUSR2, lambda s, f: runner.controls.resume())
+    quiet = sys.stderr.isatty()  # on a terminal the progress bar says it
+
+    def pause(signum: int, frame: FrameType | None) -> None:
+        runner.controls.pause()
+        if not quiet:
+            print("paused (SIGUSR1; SIGUSR2 resumes)", file=sys.stderr, flush=True)
+
+    def resume(signum: int, frame: FrameType | None) -> None:
+        runner.controls.resume()
+        if not quiet:
+            print("resumed (SIGUSR2)", file=sys.stderr, flush=True)
+
+    signal.signal(signal.SIGUSR1, pause)
+    signal.signal(signal.SIGUSR2, resume)
     if early is not None and early.paused:
         runner.controls.pause()

@@ -147,6 +147,23 @@ def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
             proc.kill()
     assert proc.returncode == 0, stderr
     assert entry_text(out, "status") == "completed"
+    assert "pause" in stderr and "resume" in stderr  # said, whichever phase caught them
+
+
+def test_pause_and_resume_during_the_run_are_said(tmp_path):
+    out = tmp_path / "pr.h5"
+    proc = start("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT)
+    try:
+        wait_for_samples(out, 2 * 1024, proc)
+        proc.send_signal(signal.SIGUSR1)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGUSR2)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    assert "paused (SIGUSR1; SIGUSR2 resumes)" in stderr and "resumed (SIGUSR2)" in stderr
 
 
 def test_sigkill_leaves_a_readable_file_missing_at_most_half_a_second(tmp_path):
