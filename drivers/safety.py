@@ -187,6 +187,7 @@ class ForceGuard:
         self._lock = threading.Lock()
         self._trip: ForceLimitError | None = None
         self._release_ceiling_N: float | None = None
+        self._release_margin = 0.05
         stage.add_interlock(self)
 
     @property
@@ -216,9 +217,12 @@ class ForceGuard:
         ceiling = self._release_ceiling_N
         bad = ~np.isfinite(values) | (np.abs(values) > (self._limit_N if ceiling is None else ceiling))
         if not bad.any():
-            if ceiling is not None and bool(np.all(np.abs(values) <= self._limit_N)):
+            if ceiling is not None and bool(
+                    np.all(np.abs(values) <= self._limit_N * (1.0 - self._release_margin))):
                 with self._lock:
-                    self._release_ceiling_N = None  # released: back to the normal limit
+                    # released (clearly below the limit, not hovering at it): back to the normal
+                    # limit; at the limit itself noise would re-trip and stop the release
+                    self._release_ceiling_N = None
             return None
         worst = float(values[int(np.argmax(bad))])
         with self._lock:
@@ -244,8 +248,10 @@ class ForceGuard:
         """Accept commands again for a load release after a trip.
 
         The force is still above the limit when the release starts, so until a block of readings is
-        back within the limit the guard trips only above ``(1 + margin)`` times the larger of the limit
-        and the force that tripped it: a release that does not lower the force (wrong direction, a
+        back below ``(1 - margin)`` times the limit the guard trips only above ``(1 + margin)`` times
+        the larger of the limit and the force that tripped it (the hysteresis keeps a force hovering
+        at the limit, with its noise, from re-tripping and stopping the release half-way): a
+        release that does not lower the force (wrong direction, a
         jammed stage) is still stopped, a working one is not interrupted by its own starting force.
         """
         if not (math.isfinite(margin) and 0.0 <= margin <= 0.5):
@@ -254,6 +260,7 @@ class ForceGuard:
             trip = self._trip
             start_N = abs(trip.force_N) if trip is not None and math.isfinite(trip.force_N) else 0.0
             self._release_ceiling_N = max(self._limit_N, start_N) * (1.0 + margin)
+            self._release_margin = margin
             self._trip = None
 
     @property

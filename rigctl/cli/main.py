@@ -84,8 +84,7 @@ def _version() -> str:
 def _main(argv: Sequence[str] | None) -> int:
     try:
         parser = build_parser()
-        given = sys.argv[1:] if argv is None else list(argv)
-        if not given:  # bare `rigctl`: the command list, not an error about a missing argument
+        if argv is None and not sys.argv[1:]:  # bare `rigctl`: the command list, not an error
             parser.print_help()
             return 2
         args = parser.parse_args(argv)
