@@ -84,7 +84,13 @@ def run(args: argparse.Namespace) -> int:
     if out is None and not args.dry_run:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         folder = Path(config.storage.directory)
-        folder.mkdir(parents=True, exist_ok=True)  # the configured folder; an explicit --out's must exist
+        if not folder.is_dir():
+            # the configured folder itself may be made, never a tree of them (a typo such as
+            # /nonexistent/dir/runs is refused); an explicit --out's folder must exist
+            if not folder.parent.is_dir():
+                raise UsageError(f"storage.directory {folder}: its parent folder {folder.parent} "
+                                 "does not exist (create it, or correct the configuration)")
+            folder.mkdir()
         out = folder / f"{protocol.name}_{stamp}.h5"
     with open_rig(backend, config, speed) as rig:
         camera = None if args.no_camera else adapters.camera_layout(rig.config)

@@ -80,6 +80,13 @@ class RunReader:
             _log.warning("%s: %s; reading what is there", self.path, self._truncation)
         daq = self._file[layout.DAQ]
         names = [layout.as_text(n) for n in daq.attrs["channels"]]
+        absent = [name for name in names if name not in daq]
+        if absent:
+            self._file.close()
+            raise DataError(
+                f"the run lists channel(s) {', '.join(absent)} but has no "
+                f"{', '.join(f'{layout.DAQ}/{a}' for a in absent)} dataset (a damaged or "
+                "hand-edited file)", path=self.path)
         self._channels: dict[str, h5py.Dataset] = {name: daq[name] for name in names}
         self._time: h5py.Dataset = daq["time"]
 

@@ -128,3 +128,24 @@ def test_run_preflight_never_replaces_a_file_being_recorded(tmp_path: Path) -> N
         holder.kill()
         holder.wait()
     check_output_path(target, overwrite=True)  # released: --force may replace it
+
+
+def test_the_configured_storage_folder_is_made_but_never_a_tree(tmp_path: Path) -> None:
+    """`rigctl run` without --out writes into storage.directory: that folder is created if its
+    parent exists; a path whose parents are missing (a typo) is refused, nothing created."""
+    bad = tmp_path / "rig_bad.toml"
+    bad.write_text(f'[storage]\ndirectory = "{tmp_path}/no/such/runs"\n')
+    _one_line_error(_rigctl("run", "tlre", "--config", str(bad), "--speed", "max",
+                            "--no-camera"), "does not exist")
+    assert not (tmp_path / "no").exists()
+
+
+def test_a_run_file_missing_a_listed_channel_is_one_line(tmp_path: Path) -> None:
+    import h5py
+
+    run = tmp_path / "r.h5"
+    assert _rigctl("simulate", "--duration", "1", "--out", str(run)).returncode == 0
+    with h5py.File(run, "r+") as f:
+        del f["entry/daq/ft_N"]
+    for cmd in (["info", str(run)], ["model", "compare", str(run)]):
+        _one_line_error(_rigctl(*cmd), "lists channel(s) ft_N but has no")
