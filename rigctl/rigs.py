@@ -18,6 +18,7 @@ from typing import Any
 from experiments.context import RigLimits
 from rigctl.acquisition import RigDevices
 from rigctl.config import RigConfig
+from rigctl.config.errors import ConfigError
 from rigctl.errors import UsageError
 from rigctl.model import ModelSpec
 
@@ -198,6 +199,14 @@ def open_rig(
         # an accelerated rig renders at most about as many camera frames per host second as in
         # real time: the camera's frame rate is lowered by the speed factor (recorded in the run)
         cam_cfg = config.camera
+        from sim_devices.contact_image import MAX_HEIGHT_PX, MAX_WIDTH_PX
+
+        if cam_cfg.width_px > MAX_WIDTH_PX or cam_cfg.height_px > MAX_HEIGHT_PX:
+            raise ConfigError(
+                f"camera {cam_cfg.width_px} x {cam_cfg.height_px} px: the simulated camera renders "
+                f"at most {MAX_WIDTH_PX} x {MAX_HEIGHT_PX} px (every frame is drawn from the "
+                "contact state in real time); set camera.width_px/height_px within that, or use "
+                "the real backend", key="camera.width_px")
         factor = 100.0 if math.isinf(speed) else speed
         fps = cam_cfg.frame_rate_hz / factor if factor > 1 else cam_cfg.frame_rate_hz
         cfg = dataclasses.replace(config, camera=dataclasses.replace(cam_cfg, frame_rate_hz=fps))

@@ -43,3 +43,12 @@ def test_the_dry_run_states_the_file_size_and_refuses_a_disk_too_small(
     assert main(["run", "slide_hold_slide", "--dry-run"]) == 2  # 4.2 GB of frames at most
     err = capsys.readouterr().err
     assert "not enough" in err and "--no-camera" in err and err.count("\n") == 1
+
+
+def test_a_camera_the_simulator_cannot_render_is_refused_in_one_line(
+        tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    cfg = tmp_path / "cam.toml"
+    cfg.write_text("[camera]\nwidth_px = 16384\nheight_px = 16384\n")
+    assert main(["run", "tlre", "--dry-run", "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "at most 640 x 480 px" in err
