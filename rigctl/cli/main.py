@@ -53,7 +53,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 130 Ctrl-C,
     143 SIGTERM during parallel candidate fits."""
-    rc = _main(argv)
+    try:
+        rc = _main(argv)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # the reader went away (`rigctl ... | head -1`): not an error of ours, and no traceback;
+        # stdout goes to /dev/null so that the interpreter's own final flush cannot fail again
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     if teardown.unsafe_to_free() and argv is None:  # a run file's close failed (disk full...)
         # The HDF5 library may crash while freeing such a file at interpreter exit, turning exit
         # code 1 into a segfault. What could be written is on disk and the error was reported:

@@ -52,3 +52,17 @@ def test_a_camera_the_simulator_cannot_render_is_refused_in_one_line(
     assert main(["run", "tlre", "--dry-run", "--config", str(cfg)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "at most 640 x 480 px" in err
+
+
+def test_a_reader_that_goes_away_is_not_a_traceback() -> None:
+    """`rigctl run tlre --dry-run | head -1`: the pipe closes before the output ends."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "rigctl.cli.main", "run", "tlre", "--dry-run"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # nobody reads: every write of the command meets a closed pipe
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
