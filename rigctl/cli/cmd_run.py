@@ -150,8 +150,10 @@ def run(args: argparse.Namespace) -> int:
               f"events {st.events}, writer lag max {st.writer_lag_max_s:.3f} s")
         rate_hz = rig.config.daq.sample_rate_hz
         for channel, n in sorted(st.probe_over_range_samples.items()):
-            print(f"warning: {channel} over range for {n} samples ({n / rate_hz:.1f} s): "
-                  "recorded at the rail and marked 'probe_over_range' in the events")
+            print(f"note: {channel} over range for {n} samples ({n / rate_hz:.1f} s): the slide "
+                  "carried the specimen past the probe's short range around its zero; those "
+                  "samples are recorded at the rail, marked 'probe_over_range' in the events and "
+                  "left out of every delta analysis (docs/experiments.md, 'Probes over range')")
     if outcome.error:
         print(f"error: {outcome.error}", file=sys.stderr)
     return {RunStatus.COMPLETED: 0, RunStatus.ABORTED: 130}.get(outcome.status, 1)
