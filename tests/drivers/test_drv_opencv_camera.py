@@ -54,7 +54,10 @@ def camera_factory() -> Iterator:
 
 
 def test_paced_playback_gives_every_frame_in_order(video: Path, camera_factory) -> None:
-    cam = camera_factory(source=str(video), frame_rate_hz=60.0, playback_rate_hz=60.0)
+    # a queue that holds the whole video: a reader starved by a loaded machine must not turn into
+    # dropped frames (the queue's overflow is tested below, with a slow reader on purpose)
+    cam = camera_factory(source=str(video), frame_rate_hz=60.0, playback_rate_hz=60.0,
+                         queue_size=N_FRAMES)
     cam.start()
     frames = [cam.read_frame(timeout_s=1.0) for _ in range(N_FRAMES)]
     assert [f.seq for f in frames] == list(range(N_FRAMES))
