@@ -171,7 +171,8 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None)
     det = DetectionSettings.from_signal(run.ft_N)
     probes = probe_range(run, delta_measured)
     valid = probes.delta_valid if probes.any_over else None
-    slips = detect_slips(t, run.ft_N, run.delta_m, det, valid, v_drive_m_s=prof.sliding_velocity_at(t))
+    slips = detect_slips(t, run.ft_N, run.delta_m, det, valid, v_drive_m_s=prof.sliding_velocity_at(t),
+                         fn_N=run.fn_N)
     read = ReadSettings(det, _settle_time(t, slips.i_end, slips.i_peak))
     events = extract_events(
         run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips, valid

@@ -67,12 +67,15 @@ def detect_slips(
     settings: DetectionSettings,
     delta_valid: np.ndarray | None = None,
     v_drive_m_s: FloatArray | None = None,
+    fn_N: FloatArray | None = None,
 ) -> SlipIndices:
     """Find slip events in a force record (see the module docstring).
 
     Where ``delta_valid`` is False (a probe over range) delta cannot confirm a small drop, which is
     then judged by the force alone. ``v_drive_m_s`` (the stage velocity per sample, e.g. from the
-    simplified drive) rejects drops while the stage moves against the force (stroke reversals).
+    simplified drive) rejects drops while the stage moves against the force (stroke reversals),
+    except where ``fn_N`` changes over the drop (a release of the normal load, which the
+    workbench pairs as such: :mod:`rigctl.workbench.features`).
     """
     n = ft_N.shape[0]
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
@@ -117,7 +120,8 @@ def detect_slips(
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
             continue
-        if v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s, v_ref):
+        if (v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s, v_ref)
+                and not _load_changes(fn_N, i_pk - gap, i_end + gap)):
             continue
         if (size < settings.confirm_factor * thr and d_informative and delta_m is not None
                 and (delta_valid is None
@@ -145,3 +149,18 @@ def _against_the_force(v_drive_m_s: FloatArray, i_pk: int, i_end: int, sign: int
     happens while the drive pushes the way the force points)."""
     v = sign * v_drive_m_s[i_pk : i_end + 1]
     return bool(v.size) and float(np.mean(v)) < -AGAINST_FRACTION * v_ref
+
+
+LOAD_CHANGE = 0.25
+"""Relative change of Fn around a drop that makes it a load change (as the release rule of
+:mod:`rigctl.workbench.features`), not a stroke reversal."""
+
+
+def _load_changes(fn_N: FloatArray | None, i0: int, i1: int) -> bool:
+    if fn_N is None:
+        return False
+    seg = np.abs(fn_N[max(i0, 0) : max(i1, 0) + 1])
+    if seg.size == 0:
+        return False
+    top = float(np.max(seg))
+    return top > 0.0 and float(np.max(seg) - np.min(seg)) > LOAD_CHANGE * top

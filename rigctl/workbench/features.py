@@ -157,7 +157,7 @@ def extract_events(
     t = t_s - t_s[0]
     if slips is None:
         slips = detect_slips(t, ft_N, delta_m, settings.detection, delta_valid,
-                             v_drive_m_s=drive.sliding_velocity_at(t))
+                             v_drive_m_s=drive.sliding_velocity_at(t), fn_N=fn_N)
 
     def d_ok(i0: int, i1: int) -> bool:
         return delta_valid is None or bool(delta_valid[max(i0, 0) : max(i1, 0)].all())

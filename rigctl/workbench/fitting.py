@@ -83,11 +83,16 @@ def identify_model(
     fns = fn_range(dataset)
     if not physically_valid(choice, fns):
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
-    starts = [(choice, _error_or_inf(dataset, choice, fns), False)]
+    e_model = _error_or_inf(dataset, choice, fns)
+    starts = [(choice, e_model, False)]
     scaled = data_scaled(dataset, choice, free)
     if scaled is not None:
         another = _another_rig(choice, scaled)
-        starts.append((scaled, _error_or_inf(dataset, scaled, fns), another))
+        e_scaled = _error_or_inf(dataset, scaled, fns)
+        # mass and drive damping are freed only where the data-scale start also scores better: on
+        # this rig's own data a free C0 would absorb an interface damper (the same physics up to
+        # C0 v_stage) and hide it from diagnose
+        starts.append((scaled, e_scaled, another and e_scaled < e_model))
         starts.sort(key=lambda start: start[1])
         if not another:
             starts = starts[:1]

@@ -49,7 +49,8 @@ def _windows(run: MeasuredRun, name: str, max_slips: int, n_windows: int) -> lis
     t = run.t_s - run.t_s[0]
     prof = drive_profile(run)
     det = DetectionSettings.from_signal(run.ft_N)
-    slips = detect_slips(t, run.ft_N, run.delta_m, det, v_drive_m_s=prof.sliding_velocity_at(t))
+    slips = detect_slips(t, run.ft_N, run.delta_m, det, v_drive_m_s=prof.sliding_velocity_at(t),
+                         fn_N=run.fn_N)
     n = slips.n
     if n <= max_slips:
         return [run]
