@@ -99,7 +99,7 @@ def identify_model(
         # on another rig's data both starts are fitted and the better end is kept: the error of a
         # start far from the data says little (on a reciprocating record the preset, making large
         # slips at the wrong friction level, scored 252 against 728 for the data-scale start,
-        # which its fit took to 4.8 while the preset's fit did not move)
+        # whose fit ends at 51 while the preset's fit did not move)
     results = [_fit_from(dataset, c, e, free, fns, another=another, max_nfev=max_nfev,
                          with_uncertainty=with_uncertainty) for c, e, another in starts]
     return min(results, key=lambda r: r.error)
