@@ -24,6 +24,7 @@ from rigctl.analysis.pipeline import CampaignAnalysis, RunAnalysis
 from rigctl.analysis.progress import SILENT, Progress
 from rigctl.analysis.sweep import SweepSummary
 from rigctl.io.atomic import atomic_text_writer
+from rigctl.io.json_values import jsonable
 
 _ENV = jinja2.Environment(
     loader=jinja2.PackageLoader("rigctl.analysis", "templates"),
@@ -46,24 +47,6 @@ def _pm(c: Coefficient) -> str:
     if c.n == 0:
         return "-"
     return f"{c.mean:.4f} &plusmn; {c.std:.4f} (n={c.n})"
-
-
-def jsonable(x: Any) -> Any:
-    """Plain JSON values: NaN/inf -> None, numpy scalars and arrays -> Python."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, bool | np.bool_):
-        return bool(x)
-    if isinstance(x, int | np.integer):
-        return int(x)
-    if isinstance(x, float | np.floating):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    return x
 
 
 def _slug(name: str) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rigctl.errors import UsageError
+from rigctl.io.json_values import jsonable
 from rigctl.io.outputs import check_output_file
 from rigctl.status import RunStatus
 
@@ -113,7 +114,7 @@ def run_info(args: argparse.Namespace) -> int:
         with RunReader(path) as reader:
             summary = reader.summary().__dict__
     if args.json:
-        print(json.dumps(_json_safe(summary), indent=2, default=str, allow_nan=False))
+        print(json.dumps(jsonable(summary), indent=2, default=str, allow_nan=False))
     else:
         sys.stdout.write(format_summary(summary))
     return 0
@@ -134,17 +135,6 @@ def _imported_status(metadata: dict[str, str]) -> tuple[RunStatus, str | None]:
         return RunStatus(original), error or f"the original run ended {original}"
     except ValueError:
         return RunStatus.ABORTED, f"the original run's status was {original!r}"
-
-
-def _json_safe(obj: Any) -> Any:
-    """NaN and infinities as null: JSON has no NaN (a run killed before its end time has one)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {str(k): _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_json_safe(v) for v in obj]
-    return obj
 
 
 def format_summary(s: dict[str, Any]) -> str:

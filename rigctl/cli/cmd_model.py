@@ -23,6 +23,7 @@ from typing import Any
 
 from rigctl.cli.cmd_simulate import add_plugins_argument
 from rigctl.errors import UsageError
+from rigctl.io.json_values import jsonable
 from rigctl.io.outputs import check_output_folder
 
 # numpy, scipy, the engine and matplotlib are imported inside the commands.
@@ -115,17 +116,6 @@ def _progress(args: argparse.Namespace) -> Any:
     return lambda msg: print(msg, file=sys.stderr, flush=True)
 
 
-def _clean(obj: Any) -> Any:
-    """JSON-safe: NaN/inf become null."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    return obj
-
-
 def run_compare(args: argparse.Namespace) -> int:
     from rigctl.workbench.compare import compare
     from rigctl.workbench.report import write_compare_report
@@ -140,7 +130,7 @@ def run_compare(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"report: {path}")
     if args.json:
-        print(json.dumps(_clean(cmp.to_json()), indent=2))
+        print(json.dumps(jsonable(cmp.to_json()), indent=2))
         return 0
     _print_compare(cmp)
     return 0
@@ -248,7 +238,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"report: {path}")
     if args.json:
-        print(json.dumps(_clean(diag.to_json(args.auto)), indent=2))
+        print(json.dumps(jsonable(diag.to_json(args.auto)), indent=2))
         return 0
     _print_diagnosis(diag, args.auto)
     return 0

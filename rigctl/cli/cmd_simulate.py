@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from rigctl.errors import UsageError
+from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
 from rigctl.io.outputs import check_output_file
 from rigctl.model import Drive, ModelSpec, Simulator, build_model
 from rigctl.model.drive import MAX_NORMAL_FORCE_N
@@ -140,17 +141,23 @@ def _drive(args: argparse.Namespace) -> Drive:
 def write_result(res: SimResult, out: Path, protocol: str) -> None:
     """Write a simulated run as CSV (exchange format) or an HDF5 run file."""
     run = res.to_measured()
-    suffix = out.suffix.lower()
-    if suffix == ".csv":
+    suffix = _out_suffix(out)
+    if suffix in CSV_SUFFIXES:
         from rigctl.io.csv_format import write_csv
 
         write_csv(out, run)
-    elif suffix in (".h5", ".hdf5", ".nxs"):
+    else:
         from rigctl.storage import write_measured_run
 
         write_measured_run(out, run, protocol=protocol, overwrite=True)
-    else:
+
+
+def _out_suffix(out: Path) -> str:
+    """The output format by suffix; an unknown one is a UsageError."""
+    suffix = out.suffix.lower()
+    if suffix not in CSV_SUFFIXES + RUN_FILE_SUFFIXES:
         raise UsageError(f"--out {out}: unknown format (use .csv or .h5)")
+    return suffix
 
 
 MAX_RATE_HZ = 1e6
@@ -179,8 +186,8 @@ def run(args: argparse.Namespace) -> int:
     for path, option in ((args.out, "--out"), (args.plot, "--plot")):
         if path is not None:
             check_output_file(path, option, force=args.force)
-    if args.out is not None and args.out.suffix.lower() not in (".csv", ".h5", ".hdf5", ".nxs"):
-        raise UsageError(f"--out {args.out}: unknown format (use .csv or .h5)")
+    if args.out is not None:
+        _out_suffix(args.out)
     v_max = float(np.max(np.abs(np.diff(drive.x_stage_m) / np.diff(drive.t_s))))
     if v_max > ODD_VELOCITY_M_S:
         print(f"warning: drive velocity {v_max:g} m/s is {v_max * 1e3:g} mm/s: is the unit right? "

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import shutil
 import threading
 from collections.abc import Callable, Iterator, Sequence
@@ -31,7 +32,7 @@ class RunProgress:
         self._est = [float(e) for e in step_estimates_s]
         self._speed = speed
         self._paused = paused
-        total = sum(self._est)
+        self._total = total = sum(self._est)
         sized = shutil.get_terminal_size((0, 0)).columns > 0
         self.bar = tqdm(total=round(total, 1), unit="s", file=stream, dynamic_ncols=sized,
                         ncols=None if sized else 100,
@@ -73,19 +74,20 @@ class RunProgress:
                 self._pause_t0 = now
                 tqdm.write("paused (SIGUSR2 or the GUI resumes)", file=self.bar.fp)
             elif not paused and self._was_paused:
-                if self._pause_t0 is not None and now == now:
+                if self._pause_t0 is not None and not math.isnan(now):
                     self._paused_s += now - self._pause_t0
                 self._pause_t0 = None
                 tqdm.write("resumed", file=self.bar.fp)
             self._was_paused = paused
             done = sum(self._est[: max(self._step - 1, 0)])
             current = 0.0
-            if 1 <= self._step <= len(self._est) and now == now and self._step_t0 == self._step_t0:
+            if (1 <= self._step <= len(self._est) and not math.isnan(now)
+                    and not math.isnan(self._step_t0)):
                 held = self._paused_s + ((now - self._pause_t0) if self._pause_t0 is not None
                                          else 0.0)
                 current = min(max(now - self._step_t0 - held, 0.0), self._est[self._step - 1])
             self.bar.n = round(done + current, 1)
-            left = max(sum(self._est) - self.bar.n, 0.0)
+            left = max(self._total - self.bar.n, 0.0)
             wall = f", ~{left / self._speed:.0f} s wall" if self._speed < float("inf") else ""
             self.bar.set_postfix_str(("PAUSED, " if paused else "") + f"ETA {left:.0f} s{wall}",
                                      refresh=False)

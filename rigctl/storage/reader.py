@@ -80,13 +80,6 @@ class RunReader:
             _log.warning("%s: %s; reading what is there", self.path, self._truncation)
         daq = self._file[layout.DAQ]
         names = [layout.as_text(n) for n in daq.attrs["channels"]]
-        absent = [name for name in names if name not in daq]
-        if absent:
-            self._file.close()
-            raise DataError(
-                f"the run lists channel(s) {', '.join(absent)} but has no "
-                f"{', '.join(f'{layout.DAQ}/{a}' for a in absent)} dataset (a damaged or "
-                "hand-edited file)", path=self.path)
         self._channels: dict[str, h5py.Dataset] = {name: daq[name] for name in names}
         self._time: h5py.Dataset = daq["time"]
 
@@ -337,7 +330,7 @@ class RunReader:
         ):
             raise DataError(
                 "not a rigctl run file (no /entry/daq with time and channels)"
-                + (f"; {self._truncation}" if self._truncation else ""), path=self.path
+                + self._truncation_note(), path=self.path
             )
         definition = (
             layout.as_text(f[layout.ENTRY]["definition"][()])
@@ -346,7 +339,18 @@ class RunReader:
         )
         if definition != layout.FORMAT_NAME:
             raise DataError(f"not a rigctl run file (definition {definition!r})"
-                            + (f"; {self._truncation}" if self._truncation else ""), path=self.path)
+                            + self._truncation_note(), path=self.path)
+        daq = f[layout.DAQ]
+        absent = [name for name in map(layout.as_text, daq.attrs["channels"]) if name not in daq]
+        if absent:
+            raise DataError(
+                f"the run lists channel(s) {', '.join(absent)} but has no "
+                f"{', '.join(f'{layout.DAQ}/{a}' for a in absent)} dataset (a damaged or "
+                "hand-edited file)", path=self.path)
+
+    def _truncation_note(self) -> str:
+        """``"; truncated file: ..."`` for an error about a file that was let through truncated."""
+        return f"; {self._truncation}" if self._truncation else ""
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"

@@ -70,7 +70,8 @@ def identify_model(
     Two starts: the model's current values and the same carried to the data's own scale
     (:mod:`rigctl.workbench.data_scale`: a record of another rig lies decades from the preset).
     Where the data-scale start lies on another rig (:func:`_another_rig`) both are fitted and the
-    better end is kept; else the fit starts from the better of the two by the event-aware error.
+    better end is kept, the data-scale one with mass and drive damping free if it also scores
+    better at the outset; else the fit starts from the better of the two by the event-aware error.
     Each start is replaced by the ratio guess of :mod:`rigctl.workbench.guess` where that scores
     better. Parameters the rig description fixes are set and left out of the fit; those it bounds
     are fitted inside its range.
@@ -100,19 +101,20 @@ def identify_model(
         # start far from the data says little (on a reciprocating record the preset, making large
         # slips at the wrong friction level, scored 252 against 728 for the data-scale start,
         # whose fit ends at 51 while the preset's fit did not move)
-    results = [_fit_from(dataset, c, e, free, fns, another=another, max_nfev=max_nfev,
-                         with_uncertainty=with_uncertainty) for c, e, another in starts]
+    results = [_fit_from(dataset, c, e, free, fns, free_dynamics=dyn, max_nfev=max_nfev,
+                         with_uncertainty=with_uncertainty) for c, e, dyn in starts]
     return min(results, key=lambda r: r.error)
 
 
 def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[FreeParam],
-              fns: tuple[float, float], *, another: bool, max_nfev: int,
+              fns: tuple[float, float], *, free_dynamics: bool, max_nfev: int,
               with_uncertainty: bool) -> FitResult:
-    """The local fit from one start: on another rig's data its mass is scanned first and mass and
-    drive damping are fitted too; the ratio guess replaces the start where it scores better."""
+    """The local fit from one start; with ``free_dynamics`` (another rig's data, see
+    :func:`identify_model`) its mass is scanned first and mass and drive damping are fitted too;
+    the ratio guess replaces the start where it scores better."""
     rig = dataset.rig
     best_choice, e_best = choice, e_start
-    if another:
+    if free_dynamics:
         # another rig: its mass and damping are guesses (data_scale.py); the post-slip dynamics
         # (ringing, drop shape) determine them where the sampling resolves them, else the fit
         # reports them as not determined

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,21 @@ RIGCTL = [sys.executable, "-m", "rigctl.cli.main"]
 
 def _rigctl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     return subprocess.run([*RIGCTL, *args], capture_output=True, text=True, timeout=timeout)
+
+
+@contextlib.contextmanager
+def _held_open(path: Path, mode: str) -> Iterator[subprocess.Popen[str]]:
+    """Another process holding ``path`` open in ``mode`` for the block (as a recording would)."""
+    holder = subprocess.Popen([sys.executable, "-c",
+                               "import sys, time\nf = open(sys.argv[1], sys.argv[2])\n"
+                               "print('open', flush=True)\ntime.sleep(60)\n", str(path), mode],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "open"
+        yield holder
+    finally:
+        holder.kill()
+        holder.wait()
 
 
 def _one_line_error(proc: subprocess.CompletedProcess[str], *words: str) -> None:
@@ -69,18 +86,10 @@ def test_a_report_path_is_checked_before_the_fit(tmp_path: Path) -> None:
 def test_a_file_being_written_is_never_replaced(tmp_path: Path) -> None:
     target = tmp_path / "live.csv"
     target.write_text("being recorded\n")
-    holder = subprocess.Popen([sys.executable, "-c",
-                               "import sys, time\nf = open(sys.argv[1], 'a')\n"
-                               "print('open', flush=True)\ntime.sleep(60)\n", str(target)],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "open"
+    with _held_open(target, "a") as holder:
         _one_line_error(_rigctl("simulate", "--duration", "1", "--out", str(target), "--force"),
                         "being written by process", str(holder.pid))
         assert target.read_text() == "being recorded\n"
-    finally:
-        holder.kill()
-        holder.wait()
 
 
 @pytest.mark.parametrize(("args", "words"), [
@@ -116,17 +125,8 @@ def test_run_preflight_never_replaces_a_file_being_recorded(tmp_path: Path) -> N
 
     target = tmp_path / "live.h5"
     target.write_bytes(b"\x89HDF\r\n\x1a\n")
-    holder = subprocess.Popen([sys.executable, "-c",
-                               "import sys, time\nf = open(sys.argv[1], 'r+b')\n"
-                               "print('open', flush=True)\ntime.sleep(60)\n", str(target)],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "open"
-        with pytest.raises(StorageError, match="being written by process"):
-            check_output_path(target, overwrite=True)
-    finally:
-        holder.kill()
-        holder.wait()
+    with _held_open(target, "r+b"), pytest.raises(StorageError, match="being written by process"):
+        check_output_path(target, overwrite=True)
     check_output_path(target, overwrite=True)  # released: --force may replace it
 
 

@@ -6,12 +6,14 @@ an operator or a scheduler does, and look at the run file it leaves.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import resource
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import h5py
@@ -32,6 +34,18 @@ def rigctl(*args: str, timeout: float = 120.0, **kw) -> subprocess.CompletedProc
 def start(*args: str, **kw) -> subprocess.Popen[str]:
     return subprocess.Popen([*RIGCTL, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, **kw)
+
+
+@contextlib.contextmanager
+def started(*args: str, **kw) -> Iterator[subprocess.Popen[str]]:
+    """:func:`start`, killed on leaving the block if it is still running (a failed assertion
+    must not leave a rig process behind)."""
+    proc = start(*args, **kw)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
 
 
 def wait_for_samples(path: Path, n: int, proc: subprocess.Popen[str], timeout_s: float = 60.0) -> int:
@@ -84,14 +98,10 @@ def test_an_unusable_output_path_is_refused_before_motion(tmp_path):
 
 def test_ctrl_c_brings_the_rig_to_a_safe_state_and_records_aborted(tmp_path):
     out = tmp_path / "ctrlc.h5"
-    proc = start("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT)
-    try:
+    with started("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT) as proc:
         wait_for_samples(out, 20 * 1024, proc)  # about 20 s of rig time: loaded, sliding
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == 130, stderr
     assert "safe state" in stderr
     assert entry_text(out, "status") == "aborted"
@@ -105,18 +115,15 @@ def test_ctrl_c_brings_the_rig_to_a_safe_state_and_records_aborted(tmp_path):
 
 
 def test_a_second_ctrl_c_escalates_to_the_emergency_stop_and_still_closes_the_file(tmp_path):
-    """Before: the second Ctrl-C left the file 'running' with no end time and Fn at 299 N."""
+    """The second Ctrl-C emergency-stops both stages; the file still ends with its status and end
+    time, not 'running'."""
     out = tmp_path / "ctrlc2.h5"
-    proc = start("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT)
-    try:
+    with started("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT) as proc:
         wait_for_samples(out, 20 * 1024, proc)
         proc.send_signal(signal.SIGINT)
         time.sleep(0.05)
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == 130, stderr
     assert "EMERGENCY STOP" in stderr
     assert entry_text(out, "status") == "aborted"  # closed with its status, not 'running'
@@ -126,10 +133,10 @@ def test_a_second_ctrl_c_escalates_to_the_emergency_stop_and_still_closes_the_fi
 
 
 def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
-    """Pause/resume asked before the run exists are kept (before: exit -10, no file)."""
+    """Pause/resume asked before the run exists are kept; SIGUSR1's default action (killing the
+    process, exit -10, no file) never applies."""
     out = tmp_path / "usr1.h5"
-    proc = start("run", "tlre", "--speed", "max", "--no-camera", "--out", str(out), *SHORT)
-    try:
+    with started("run", "tlre", "--speed", "max", "--no-camera", "--out", str(out), *SHORT) as proc:
         deadline = time.monotonic() + 60
         while proc.poll() is None and time.monotonic() < deadline and not out.exists():
             if os.path.exists(f"/proc/{proc.pid}/status"):
@@ -142,9 +149,6 @@ def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
         time.sleep(1.0)
         proc.send_signal(signal.SIGUSR2)
         _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == 0, stderr
     assert entry_text(out, "status") == "completed"
     assert "pause" in stderr and "resume" in stderr  # said, whichever phase caught them
@@ -152,32 +156,24 @@ def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
 
 def test_pause_and_resume_during_the_run_are_said(tmp_path):
     out = tmp_path / "pr.h5"
-    proc = start("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT)
-    try:
+    with started("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT) as proc:
         wait_for_samples(out, 2 * 1024, proc)
         proc.send_signal(signal.SIGUSR1)
         time.sleep(0.5)
         proc.send_signal(signal.SIGUSR2)
         _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == 0, stderr
     assert "paused (SIGUSR1; SIGUSR2 resumes)" in stderr and "resumed (SIGUSR2)" in stderr
 
 
 def test_sigkill_leaves_a_readable_file_missing_at_most_half_a_second(tmp_path):
     out = tmp_path / "killed.h5"
-    proc = start("run", "tlre", "--speed", "1", "--out", str(out), *SHORT)
-    try:
+    with started("run", "tlre", "--speed", "1", "--out", str(out), *SHORT) as proc:
         wait_for_samples(out, 3 * 1024, proc)
         time.sleep(1.3)  # a moment between flushes, not right after one
         t_kill = time.monotonic()
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
     assert proc.returncode == -signal.SIGKILL
     with RunReader(out) as r:  # opens: the file is consistent
         blocks = r.blocks()
