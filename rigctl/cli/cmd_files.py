@@ -53,23 +53,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from rigctl.io.csv_format import write_csv
+    from rigctl.io.export import export_csv
     from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
-    from rigctl.storage import RunReader
 
     _require_suffix(args.run, RUN_FILE_SUFFIXES, "RUN")
     _require_suffix(args.csv, CSV_SUFFIXES, "--csv")
     check_output_file(args.csv, "--csv", force=args.force)
-    with RunReader(args.run) as reader:
-        run = reader.to_measured()
-        s = reader.summary()
-        provenance = {"run.protocol": s.protocol, "run.status": s.status, "run.error": s.error,
-                      "run.start_time": s.start_time, "run.end_time": s.end_time,
-                      "run.software": ", ".join(f"{k} {v}" for k, v in reader.software.items())}
-    for key, value in provenance.items():  # a key the run's own metadata has is kept as it is
-        if value and key not in run.metadata:
-            run.metadata[key] = " ".join(str(value).split())
-    write_csv(args.csv, run)
+    run = export_csv(args.run, args.csv)
     print(f"wrote {args.csv} ({run.n_samples} samples, {len(run.columns())} columns)")
     return 0
 
