@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rigctl.errors import InputError, UsageError
@@ -61,7 +62,8 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The GUI's options: ``--backend``, ``--config``, ``--speed``, ``--in-process``."""
+    """The GUI's options: ``--backend``, ``--config``, ``--speed``, ``--in-process``; ``--screenshot``
+    with ``--tab``, ``--after`` and ``--force``."""
     p.add_argument("--backend", default=None, choices=["sim", "sim-wire", "real"],
                    help="devices (default: the configuration's rig.backend)")
     p.add_argument("--config", default=None, help="rig configuration (TOML)")
@@ -69,6 +71,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--in-process", action="store_true",
                    help="run protocols in this process (a crash of the window then aborts the run) "
                    "instead of the run service")
+    p.add_argument("--screenshot", metavar="OUT.png", default=None,
+                   help="no window: run TLRE on the simulated rig for --after seconds, write a "
+                   "picture of --tab to OUT.png and exit")
+    p.add_argument("--tab", default="live",
+                   help="the tab pictured by --screenshot, by its name in the window (devices, "
+                   "protocols, live, ...; default live)")
+    p.add_argument("--after", type=float, default=10.0, metavar="SECONDS",
+                   help="wall time the run goes on before the picture (default 10)")
+    p.add_argument("--force", action="store_true", help="replace an existing --screenshot file")
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -80,6 +91,17 @@ def run_from_args(args: argparse.Namespace) -> int:
         parse_speed(args.speed)
     except InputError as exc:
         raise UsageError(str(exc)) from None
+    screenshot = getattr(args, "screenshot", None)
+    if screenshot is not None:
+        from rigctl.gui.screenshot import check_request, take_screenshot
+
+        if args.backend not in (None, "sim"):
+            raise UsageError(f"--screenshot runs the simulated rig; --backend {args.backend} is "
+                             "not taken with it")
+        out = Path(screenshot).expanduser()
+        check_request(out, args.after, force=args.force)
+        config, _ = load_effective_config(args.config)
+        return take_screenshot(config, out, args.tab, args.after, args.speed)
     config, source = load_effective_config(args.config)
     backend = args.backend or config.rig.backend
     if backend == "real" and source is None:

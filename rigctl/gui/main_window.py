@@ -15,6 +15,7 @@ from PySide6.QtWidgets import QMainWindow, QPushButton, QTabWidget, QVBoxLayout,
 
 from rigctl.config import RigConfig
 from rigctl.gui.devices_panel import DevicesPanel
+from rigctl.gui.live_view import LiveView
 from rigctl.gui.run_panel import RunPanel
 from rigctl.rigs import OpenRig
 from rigctl.runservice.devices import jog, reset_emergency_stop, snapshot
@@ -24,7 +25,7 @@ ESTOP_KEY = "F12"
 
 
 class MainWindow(QMainWindow):
-    """Emergency stop + tabs (Devices, Protocols)."""
+    """Emergency stop + tabs (Devices, Protocols, Live)."""
 
     def __init__(self, config: RigConfig, backend: str = "sim", *, rig: OpenRig | None = None,
                  speed: str = "1", service: Address | None = None, config_path: str | None = None,
@@ -66,6 +67,8 @@ class MainWindow(QMainWindow):
         self.tabs = QTabWidget()
         self.tabs.addTab(self.devices, "Devices")
         self.tabs.addTab(self.panel, "Protocols")
+        self.live_view = self._live_view(config)
+        self.tabs.addTab(self.live_view, "Live")
         self.tabs.setCurrentWidget(self.panel)
         central = QWidget()
         layout = QVBoxLayout(central)
@@ -75,10 +78,23 @@ class MainWindow(QMainWindow):
         self.resize(1200, 760)
         self.statusBar().showMessage("ready")
 
+    def _live_view(self, config: RigConfig) -> LiveView:
+        """The Live tab, fed what the run panel receives (blocks, camera images, events, devices)."""
+        view = LiveView(rate_hz=config.daq.sample_rate_hz, camera_rate_hz=config.camera.frame_rate_hz)
+        sig = self.panel.signals
+        sig.live_blocks.connect(view.feed_blocks)
+        sig.live_frames.connect(view.feed_frames)
+        sig.run_event.connect(view.add_event)
+        sig.devices.connect(view.show_devices)
+        sig.run_started.connect(view.start_run)
+        return view
+
     # a rig held by this window (tests, embedding): the Devices tab reads and jogs it directly
     def _local_snapshot(self) -> None:
         if self._rig is not None:
-            self.devices.show_snapshot(snapshot(self._rig, busy=self.panel.busy))
+            snap = snapshot(self._rig, busy=self.panel.busy)
+            self.devices.show_snapshot(snap)
+            self.live_view.show_devices(snap)
 
     def _local_jog(self, axis: str, delta_m: float, velocity_m_s: float) -> None:
         assert self._rig is not None
@@ -105,3 +121,5 @@ class MainWindow(QMainWindow):
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.panel.closeEvent(event)  # a run going: ask, abort, close once safe
+        if event.isAccepted():
+            self.live_view.shutdown()

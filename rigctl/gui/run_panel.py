@@ -55,6 +55,8 @@ from rigctl.config.loader import to_toml
 from rigctl.gui.live_plot import LivePlot
 from rigctl.rigs import OpenRig, open_rig, parse_speed
 from rigctl.runservice.client import ServiceClient
+from rigctl.runservice.events import WarningForwarder
+from rigctl.runservice.frames import start_forwarding
 from rigctl.runservice.wire import Address, JobSpec
 from rigctl.status import RunStatus
 from rigctl.storage.layout import RunDescription
@@ -65,6 +67,8 @@ SUBSCRIPTION_BLOCKS = 512
 """Bound of the live-data mailbox (DAQ blocks); the GUI drains it and redraws every ``DRAIN_INTERVAL_MS``
 (about 30 frames per second)."""
 DRAIN_INTERVAL_MS = 33
+FRAME_MAILBOX = 16
+"""Bound of the live camera-image mailbox (LiveFrames, a few a second)."""
 ABORT_REASON = "aborted by the operator"
 ESTOP_REASON = "emergency stop by the operator"
 
@@ -111,6 +115,10 @@ class _WorkerSignals(QObject):
     devices = Signal(object)  # RigSnapshot from the run service
     jog_result = Signal(bool, str)
     service_lost = Signal()
+    live_blocks = Signal(object)  # list of DAQ blocks just drained (GUI thread; the live view)
+    live_frames = Signal(object)  # list of LiveFrames just drained (GUI thread; the live view)
+    run_event = Signal(str, str)  # level ("info", "warning", "error"), text: the run's events
+    run_started = Signal(object)  # Path of the run file: a run (not a dry run) is starting
 
 
 class _LiveMailbox:
@@ -178,6 +186,9 @@ class RunPanel(QWidget):
         self._client: ServiceClient | None = None
         self._remote_busy = False
         self._mailbox = _LiveMailbox(SUBSCRIPTION_BLOCKS)
+        self._frames = _LiveMailbox(FRAME_MAILBOX)
+        self.run_path: Path | None = None
+        """The run file of the latest run (None before one and for a dry run)."""
         self._live_announced = False
         self._build(speed)
         if service is not None and rig is None:
@@ -395,6 +406,8 @@ class RunPanel(QWidget):
             if not self._live_announced:
                 self._live_announced = True
                 self._sig.subscribed.emit(self._mailbox)
+        elif kind == "frame":
+            self._frames.put(payload)
         elif kind == "planned":
             self._sig.planned.emit(payload)
         elif kind == "progress":
@@ -411,8 +424,10 @@ class RunPanel(QWidget):
             self._sig.service_lost.emit()
 
     def _on_service_log(self, level: str, text: str) -> None:
+        self._sig.run_event.emit(level, text)
         if level in ("warning", "error"):
-            self._status(f"run service: {text}", _RED if level == "error" else _ORANGE)
+            self._status(f"run service: {text}", _RED if level == "error" else _ORANGE,
+                         announce=False)
 
     def _on_service_lost(self) -> None:
         self._remote_busy = False
@@ -450,6 +465,8 @@ class RunPanel(QWidget):
                     return
                 overwrite = True
         self._controls = Controls()
+        self.run_path = out
+        self._frames.drain()
         job = _Job(dry, self.protocol, given, speed, speed_text, out, overwrite,
                    self.camera_check.isChecked(), self._controls)
         self._speed = speed
@@ -458,6 +475,7 @@ class RunPanel(QWidget):
         self.last_outcome = None
         if not dry:
             self._reset_plot()
+            self._sig.run_started.emit(out)
             self.progress_bar.setValue(0)
             self.progress_label.setText("starting…")
         self.plan_view.setStyleSheet("")
@@ -593,7 +611,10 @@ class RunPanel(QWidget):
         self.abort_button.setEnabled(state in ("running", "paused"))
         self.state = state
 
-    def _status(self, text: str, color: str | None) -> None:
+    def _status(self, text: str, color: str | None, *, announce: bool = True) -> None:
+        if announce:
+            self._sig.run_event.emit("error" if color == _RED else "warning" if color == _ORANGE
+                                 else "info", text)
         self.status_label.setText(text)
         self.status_label.setStyleSheet(f"color: {color}; font-weight: bold" if color else "")
 
@@ -610,6 +631,7 @@ class RunPanel(QWidget):
     def _work(self, job: _Job) -> None:
         """Runs in the worker thread: talks to the GUI only by emitting signals."""
         result = _Result("error", "nothing done")
+        warnings = WarningForwarder(lambda level, text: self._sig.run_event.emit(level, text)).install()
         try:
             with self._open(job) as rig:
                 runner = self._runner(job, rig)
@@ -629,6 +651,7 @@ class RunPanel(QWidget):
         except Exception as exc:
             result = _Result("error", f"{type(exc).__name__}: {exc}")
         finally:
+            warnings.remove()
             self._sig.done.emit(result)
 
     def _runner(self, job: _Job, rig: OpenRig) -> Runner:
@@ -639,6 +662,10 @@ class RunPanel(QWidget):
             if pacer is not None:
                 pacer.follow(lambda: acq.t_s)
             sig.subscribed.emit(acq.publisher.subscribe("daq", maxlen=SUBSCRIPTION_BLOCKS))
+            if acq.record_camera:
+                worker = threading.current_thread()
+                start_forwarding(acq.publisher.subscribe("camera", maxlen=120), self._frames.put,
+                                 worker.is_alive, name="rigctl-gui-frames")
 
         def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
             ctx = runner.ctx
@@ -739,7 +766,11 @@ class RunPanel(QWidget):
         if sub is None:
             return
         blocks = sub.drain()
+        frames = self._frames.drain()
+        if frames:
+            self._sig.live_frames.emit(frames)
         if blocks:
+            self._sig.live_blocks.emit(blocks)
             self.live.feed(blocks)
             self._t_latest = float(blocks[-1]["t_s"][-1])
             self.live.redraw()

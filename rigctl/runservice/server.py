@@ -45,6 +45,8 @@ from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.rigs import OpenRig, open_rig
 from rigctl.runservice.devices import RigSnapshot, jog, reset_emergency_stop, snapshot
+from rigctl.runservice.events import WarningForwarder, drop_events
+from rigctl.runservice.frames import start_forwarding
 from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
 from rigctl.storage.layout import RunDescription
 
@@ -52,6 +54,10 @@ _log = logging.getLogger("rigctl.runservice")
 
 LIVE_QUEUE_MAX = 256
 """Live-data messages a client may have waiting before its oldest are dropped."""
+LIVE_FRAME_QUEUE_MAX = 4
+"""Live camera images (``frame`` messages) a client may have waiting before its oldest are dropped."""
+DROP_CHECK_INTERVAL_S = 1.0
+"""How often the acquisition's drop counters are compared for ``dropped data`` events."""
 ESTOP_REASON = "emergency stop"
 SNAPSHOT_INTERVAL_S = 0.4
 """Device status sent to clients this often (the Devices tab)."""
@@ -76,11 +82,12 @@ class _ClientLink:
         with self._cond:
             if self.closed:
                 return
-            if kind == "daq":
-                live = sum(1 for k, _ in self._queue if k == "daq")
-                if live >= LIVE_QUEUE_MAX:
+            bound = {"daq": LIVE_QUEUE_MAX, "frame": LIVE_FRAME_QUEUE_MAX}.get(kind)
+            if bound is not None:
+                live = sum(1 for k, _ in self._queue if k == kind)
+                if live >= bound:
                     for i, (k, _) in enumerate(self._queue):
-                        if k == "daq":
+                        if k == kind:
                             del self._queue[i]
                             self.dropped_live += 1
                             break
@@ -252,11 +259,13 @@ class RunService:
                 self._controls.pause()
                 self.state.paused = True
                 self._broadcast("state", self.state)
+                self._log("info", "run paused by the operator (the stages hold; recording goes on)")
         elif kind == "resume":
             if self._controls is not None and self.state.busy:
                 self._controls.resume()
                 self.state.paused = False
                 self._broadcast("state", self.state)
+                self._log("info", "run resumed by the operator")
         elif kind == "abort":
             self.abort(str(payload or "aborted by the operator"))
         elif kind == "estop":
@@ -380,8 +389,12 @@ class RunService:
             if pacer is not None:
                 pacer.follow(lambda: acq.t_s)
             sub = acq.publisher.subscribe("daq", maxlen=512)
-            threading.Thread(target=self._forward, args=(sub,), name="runservice-live",
+            threading.Thread(target=self._forward, args=(sub, acq), name="runservice-live",
                              daemon=True).start()
+            if acq.record_camera:
+                start_forwarding(acq.publisher.subscribe("camera", maxlen=120),
+                                 lambda frame: self._broadcast("frame", frame),
+                                 lambda: self.state.busy, name="runservice-frames")
 
         def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
             ctx = runner.ctx
@@ -409,9 +422,16 @@ class RunService:
         self._runner = runner
         return runner
 
-    def _forward(self, sub: Any) -> None:
-        """Live DAQ blocks to every client (the columns the live view needs), until the run ends."""
+    def _forward(self, sub: Any, acq: Acquisition | None = None) -> None:
+        """Live DAQ blocks to every client (the columns the live view needs), until the run ends;
+        a ``dropped data`` warning when one of the acquisition's drop counters grows."""
+        seen: dict[str, int] = {}
+        next_check_s = time.monotonic() + DROP_CHECK_INTERVAL_S
         while self.state.busy or not sub.closed:
+            if acq is not None and time.monotonic() >= next_check_s:
+                next_check_s = time.monotonic() + DROP_CHECK_INTERVAL_S
+                for level, text in drop_events(acq.stats, seen):
+                    self._log(level, text)
             block = sub.get(timeout_s=0.2)
             if block is None:
                 if not self.state.busy:
@@ -475,6 +495,7 @@ def main(argv: list[str] | None = None) -> int:
 def serve(backend: str, config: RigConfig, speed: float, address: Address, **kw: Any) -> int:
     with open_rig(backend, config, speed) as rig:
         service = RunService(rig, backend, address, **kw)
+        WarningForwarder(lambda level, text: service._broadcast("log", (level, text))).install()
 
         def on_signal(signum: int, frame: FrameType | None) -> None:
             service.stop(f"run service terminated (signal {signum})")

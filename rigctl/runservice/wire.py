@@ -7,8 +7,10 @@ user who started it can connect). Messages are tuples ``(kind, payload)``.
 Client to service: ``("start", JobSpec)``, ``("pause", None)``, ``("resume", None)``,
 ``("abort", reason)``, ``("estop", reason)``, ``("shutdown", None)``.
 Service to client: ``("hello", ServiceState)``, ``("planned", Plan)``, ``("progress", (i, n, step,
-elapsed, eta, device_t))``, ``("daq", columns)``, ``("done", RunResult)``, ``("log", (level, text))``,
-``("state", ServiceState)``.
+elapsed, eta, device_t))``, ``("daq", columns)``, ``("frame", LiveFrame)`` (a downsampled camera
+image a few times a second with every frame's Isum, :mod:`rigctl.runservice.frames`), ``("done",
+RunResult)``, ``("log", (level, text))`` (the service's own lines, the run's warnings, pause/resume and
+dropped data), ``("state", ServiceState)``.
 """
 
 from __future__ import annotations
