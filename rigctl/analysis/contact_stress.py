@@ -1,0 +1,145 @@
+"""The equivalent stress distribution P(x, t) and the mean contact intensity Im(i) (Sec. 3.2, Figs. 7, 13).
+
+Han et al. 2022, Sec. 3.2: "If the real contact area linearly changes with the change of normal force,
+the distribution of contact area on the interface can approximately represent the distribution of
+interface stress." The equation that follows was lost; we read it as I(x, t) normalised along x:
+
+    P(x, t) = I(x, t) / integral_0^1 I(x', t) dx'          (a density: its mean over x is 1)
+
+with x the normalised length of the contact, 0 the back end, 1 the front end (Fig. 7a). Sec. 5.1
+(Fig. 13): "the contact area is divided into 10 parts along the x direction, and the intensity
+proportion of local contact image is calculated as the equivalent stress distribution P(k, t)":
+
+    P(k, t) = sum_{x in part k} I(x, t) / sum_x I(x, t),   k = 1..10,   sum_k P(k, t) = 1
+
+the model's convention for its element shares P(i) (docs/model.md: element i covers x in
+[i/N, (i+1)/N), element 0 at the back end). Negative bin sums (noise below the dark level) count
+as 0; a frame without contact has no P (NaN).
+
+Sec. 3.2, Fig. 7d: "the average value Im(i) of the contact image intensity in the corresponding time
+is taken to calculate the K(i)": Im(i) is the mean contact intensity Ic(t) of the frames inside the
+time window of cycle i's K(i) band (:attr:`rigctl.analysis.stiffness.CycleStiffness.t_window_s`).
+A window holding no frame (a slow camera) takes Ic interpolated at its middle, flagged by
+``n_frames = 0``.
+
+P at chosen tangential forces (Figs. 7b-c, 13a): the first frame of a stick whose Ft (the force
+record interpolated at the frame time) reaches the target.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rigctl.analysis.contact_intensity import ContactIntensity
+from rigctl.analysis.stiffness import CycleStiffness
+from rigctl.data import FloatArray
+
+MODEL_BINS = 10
+"""Parts of the contact in the paper's model (Sec. 5.1) and in rigctl's default model (N = 10)."""
+
+
+def p_density(profile: NDArray[np.floating]) -> FloatArray:
+    """P(x, t) as a density over normalised x (rows: frames, columns: bins of x; NaN without contact)."""
+    prof = np.clip(np.asarray(profile, dtype=np.float64), 0.0, None)
+    if prof.ndim == 1:
+        prof = prof[None, :]
+    total = prof.sum(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(total > 0, prof * prof.shape[1] / total, np.nan)
+    return out
+
+
+def p_bins(profile: NDArray[np.floating], n_parts: int = MODEL_BINS) -> FloatArray:
+    """P(k, t): the share of the contact intensity in each of ``n_parts`` equal parts (sum 1).
+
+    The profile's bins must split evenly into the parts (100 bins into 10).
+    """
+    prof = np.clip(np.asarray(profile, dtype=np.float64), 0.0, None)
+    if prof.ndim == 1:
+        prof = prof[None, :]
+    nb = prof.shape[1]
+    if n_parts < 1 or nb % n_parts:
+        raise ValueError(f"{nb} profile bins do not split into {n_parts} equal parts")
+    parts = prof.reshape(prof.shape[0], n_parts, nb // n_parts).sum(axis=2)
+    total = parts.sum(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total > 0, parts / total, np.nan)
+
+
+@dataclass(frozen=True)
+class PSnapshot:
+    """P at one chosen tangential force."""
+
+    target_N: float
+    frame: int
+    t_s: float
+    ft_N: float
+    """Ft at the frame (the target, up to one frame interval of loading)."""
+    p_x: FloatArray
+    """P(x) density on the profile bins."""
+    p_k: FloatArray
+    """P(k), the model's 10 parts."""
+
+    def to_dict(self) -> dict[str, object]:
+        return {"target_ft_N": self.target_N, "frame": self.frame, "t_s": self.t_s,
+                "ft_N": self.ft_N, "P_x": self.p_x.tolist(), "P_k": self.p_k.tolist()}
+
+
+def frame_at_force(t_frames_s: FloatArray, ft_frames_N: FloatArray, t_a_s: float, t_b_s: float,
+                   target_N: float) -> int | None:
+    """First frame in [t_a, t_b] whose Ft reaches ``target_N`` (None if none does)."""
+    sel = np.flatnonzero((t_frames_s >= t_a_s) & (t_frames_s <= t_b_s))
+    if sel.size == 0:
+        return None
+    hit = sel[ft_frames_N[sel] >= target_N]
+    return int(hit[0]) if hit.size else None
+
+
+def p_at_forces(ci: ContactIntensity, ft_frames_N: FloatArray, t_a_s: float, t_b_s: float,
+                targets_N: Sequence[float]) -> list[PSnapshot]:
+    """P(x) and P(k) at the first frame of [t_a, t_b] reaching each target force (skips misses)."""
+    out: list[PSnapshot] = []
+    for target in targets_N:
+        j = frame_at_force(ci.t_s, ft_frames_N, t_a_s, t_b_s, float(target))
+        if j is None:
+            continue
+        out.append(PSnapshot(float(target), j, float(ci.t_s[j]), float(ft_frames_N[j]),
+                             p_density(ci.profile[j])[0], p_bins(ci.profile[j])[0]))
+    return out
+
+
+@dataclass(frozen=True)
+class MeanIntensity:
+    """Im(i) of one cycle."""
+
+    cycle: int
+    stage: str
+    im: float
+    n_frames: int
+    """Frames averaged (0: Ic interpolated at the window's middle)."""
+    t_window_s: tuple[float, float]
+
+
+def im_cycles(ci: ContactIntensity, stiffness: Sequence[CycleStiffness]) -> list[MeanIntensity]:
+    """Im(i): mean Ic over each cycle's K(i) window (NaN where K(i) has no window)."""
+    out: list[MeanIntensity] = []
+    for s in stiffness:
+        a, b = s.t_window_s
+        if not (math.isfinite(a) and math.isfinite(b)) or ci.n_frames == 0:
+            out.append(MeanIntensity(s.cycle, s.stage, math.nan, 0, (a, b)))
+            continue
+        sel = (ci.t_s >= a) & (ci.t_s <= b)
+        k = int(np.count_nonzero(sel))
+        if k:
+            im = float(np.mean(ci.ic[sel]))
+        elif ci.t_s[0] <= 0.5 * (a + b) <= ci.t_s[-1]:
+            im = float(np.interp(0.5 * (a + b), ci.t_s, ci.ic))
+        else:
+            im = math.nan
+        out.append(MeanIntensity(s.cycle, s.stage, im, k, (a, b)))
+    return out
