@@ -1,8 +1,10 @@
 """Analyse runs as the paper does: one run file or CSV, or a folder (a campaign).
 
 :func:`analyse_run` opens a run (:mod:`rigctl.analysis.source`), runs the mechanical analyses
-(:mod:`rigctl.analysis.mechanics`). :func:`analyse_campaign` does that for every run of a folder and adds
-the force-sweep summary (:mod:`rigctl.analysis.sweep`); a single force-sweep file gets it too.
+(:mod:`rigctl.analysis.mechanics`) and, when the run has timed camera frames, the contact-image
+analyses (:mod:`rigctl.analysis.contact_run`). :func:`analyse_campaign` does that for every run of
+a folder and adds the force-sweep summary (:mod:`rigctl.analysis.sweep`); a single force-sweep
+file gets it too.
 Everything a run lacks is said in its notes; a file that cannot be read at all is a note of the
 campaign (the other runs are still analysed), and a DataError for a single run.
 """
@@ -17,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from rigctl.analysis.contact_run import ContactAnalysis, analyse_contact
 from rigctl.analysis.mechanics import Mechanics, analyse_mechanics
 from rigctl.analysis.progress import SILENT, Progress
 from rigctl.analysis.source import RunSource, open_source
@@ -30,6 +33,9 @@ class RunAnalysis:
     source: RunSource
     mechanics: Mechanics
     notes: list[str] = field(default_factory=list)
+    contact: ContactAnalysis | None = None
+    contact_absent: str = ""
+    """Why there is no contact analysis ('' when there is one)."""
 
     @property
     def name(self) -> str:
@@ -37,6 +43,11 @@ class RunAnalysis:
 
     def im1(self, pass_index: int) -> float:
         """Im(1) of a pass, NaN without frames."""
+        if self.contact is None:
+            return math.nan
+        for pc in self.contact.passes:
+            if pc.pass_index == pass_index:
+                return pc.im1
         return math.nan
 
     def to_dict(self) -> dict[str, Any]:
@@ -59,6 +70,8 @@ class RunAnalysis:
             "notes": list(self.notes),
             "passes": self.mechanics.pass_dicts(),
             "repeatability": [r.to_dict() for r in self.mechanics.repeatability],
+            "contact": {"absent": self.contact_absent} if self.contact is None
+            else self.contact.to_dict(),
         }
 
 
@@ -67,7 +80,20 @@ def analyse_run(path: str | Path, progress: Progress = SILENT) -> RunAnalysis:
     src = open_source(path)
     mech = analyse_mechanics(src.run)
     notes = list(src.notes) + list(mech.notes)
-    return RunAnalysis(src, mech, notes)
+    contact: ContactAnalysis | None = None
+    absent = ""
+    if src.frames is None:
+        frame_notes = [n for n in src.notes if "frame" in n or "camera" in n]
+        absent = frame_notes[0] if frame_notes else "the run has no usable camera frames"
+    else:
+        try:
+            contact = analyse_contact(src, mech, progress)
+        except DataError as exc:
+            absent = f"contact images not analysed: {exc}"
+            notes.append(absent)
+        else:
+            notes += contact.notes
+    return RunAnalysis(src, mech, notes, contact, absent)
 
 
 @dataclass

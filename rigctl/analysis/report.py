@@ -19,6 +19,7 @@ import jinja2
 import numpy as np
 
 from rigctl.analysis import figures_mech, figures_sweep
+from rigctl.analysis.contact_report import contact_sections
 from rigctl.analysis.friction import Coefficient
 from rigctl.analysis.pipeline import CampaignAnalysis, RunAnalysis
 from rigctl.analysis.progress import SILENT, Progress
@@ -103,7 +104,9 @@ def _run_context(ra: RunAnalysis, folder: Path, prefix: str) -> dict[str, Any]:
         "samples": f"{s.run.n_samples} over {s.run.duration_s:.1f} s at "
                    f"{s.run.sample_rate_hz:.0f} Hz",
         "frames": frames, "notes": ra.notes, "passes": passes, "repeatability": rep,
-        "figures": figures, "sections": [], "cycle_tables": cycle_tables,
+        "figures": figures,
+        "sections": contact_sections(ra.contact, ra.contact_absent, m, folder, prefix),
+        "cycle_tables": cycle_tables,
     }
 
 
