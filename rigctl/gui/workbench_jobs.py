@@ -1,0 +1,194 @@
+"""The Workbench tab's work, run in worker processes (:mod:`rigctl.gui.process_job`); no Qt here.
+
+Each job loads the runs as ``rigctl model`` does (:func:`rigctl.io.load.load_runs`, long records cut
+into windows by :func:`rigctl.workbench.long_records.window_long_runs`) and calls the workbench's
+public functions: :func:`~rigctl.workbench.compare.compare` (``rigctl model compare``) and
+:func:`~rigctl.workbench.diagnose.diagnose` (``rigctl model diagnose``). What goes back to the window
+is small and picklable: overlays decimated to ``OVERLAY_POINTS`` per curve
+(:func:`~rigctl.gui.decimate.peak_indices`), the residual map as a matrix, the ranking as rows.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rigctl.gui.decimate import FloatArray, peak_indices
+
+if TYPE_CHECKING:
+    from rigctl.gui.process_job import Report
+    from rigctl.workbench.compare import Comparison
+    from rigctl.workbench.model_choice import ModelChoice
+
+OVERLAY_POINTS = 5000
+MAX_OVERLAY_RUNS = 6
+TREND_T_MIN = 3.0
+"""Residual trends with |t| below this are shown as 0 (as the HTML report's residual map)."""
+
+
+@dataclass(frozen=True)
+class ModelRequest:
+    """Which data and which model (as the ``rigctl model`` options DATA, --base, --effects,
+    --effect-file)."""
+
+    paths: tuple[str, ...]
+    base: str = "paper"
+    effects: tuple[str, ...] = ()
+    effect_files: tuple[str, ...] = ()
+
+    def choice(self) -> ModelChoice:
+        from rigctl.workbench.model_choice import ModelChoice
+
+        choice = ModelChoice(self.base, self.effects, {}, self.effect_files)
+        choice.build()  # parameter problems surface here, as one line
+        return choice
+
+    def label(self) -> str:
+        return self.base + "".join(f" + {e}" for e in self.effects)
+
+
+@dataclass(frozen=True)
+class Overlay:
+    """One run, measured and model, decimated: Ft and delta against time."""
+
+    name: str
+    t_s: FloatArray
+    ft_N: FloatArray
+    delta_m: FloatArray
+    t_model_s: FloatArray
+    ft_model_N: FloatArray
+    delta_model_m: FloatArray
+
+
+@dataclass(frozen=True)
+class CompareView:
+    """A comparison of one model with the data, as the tab shows it."""
+
+    label: str
+    effects: tuple[str, ...]
+    error: float
+    n_events: int
+    n_runs: int
+    feature_z: dict[str, float]
+    overlays: list[Overlay]
+    residual: FloatArray
+    """Signed trend amplitude (z) of each feature (rows) against each covariate (columns)."""
+    features: tuple[str, ...]
+    covariates: tuple[str, ...]
+    by_stage: dict[str, dict[str, float]]
+    by_phase: dict[str, float]
+    discrepancies: list[str]
+    parameters: list[dict[str, Any]]
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class RankingRow:
+    effect: str
+    error: float
+    error_reduction: float
+    delta_bic: float
+    significant: bool
+    explains: str
+
+
+@dataclass(frozen=True)
+class DiagnoseView:
+    """A diagnosis round: the model's error, the candidates ranked by evidence, the verdict."""
+
+    label: str
+    baseline_error: float
+    rows: list[RankingRow]
+    verdict: str
+    candidates: list[str]
+    unexplained: str
+    suggest: str | None
+    discrepancies: list[str]
+
+
+def load(paths: Sequence[str]) -> list[Any]:
+    """The runs named (files or campaign folders), long records windowed, as ``rigctl model``."""
+    from rigctl.io.load import load_runs
+    from rigctl.workbench.long_records import window_long_runs
+
+    return window_long_runs(load_runs(list(paths)))
+
+
+def compare_job(report: Report, request: ModelRequest, identify: bool = True) -> CompareView:
+    """Identify ``request``'s model on its runs and compare (the worker process's target)."""
+    from rigctl.workbench.compare import compare
+
+    choice = request.choice()
+    report(f"loading {len(request.paths)} path(s)", math.nan)
+    runs = load(request.paths)
+    cmp = compare(runs, choice, identify=identify, progress=lambda m: report(m, math.nan))
+    report("simulated; preparing the overlays", 1.0)
+    return compare_view(cmp)
+
+
+def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, ...] = (),
+                 workers: int | None = None) -> DiagnoseView:
+    """Rank candidate effects on ``request``'s model (``rigctl model diagnose``; default candidates:
+    every library and plug-in effect the model does not have)."""
+    from rigctl.workbench.dataset import prepare_dataset
+    from rigctl.workbench.diagnose import diagnose
+    from rigctl.workbench.model_choice import candidate_effects
+
+    choice = request.choice()
+    names = list(candidates) or candidate_effects(choice)
+    if not names:
+        raise ValueError("no candidate effects left to try")
+    report(f"loading {len(request.paths)} path(s)", math.nan)
+    dataset = prepare_dataset(load(request.paths))
+    done = [0]
+
+    def progress(msg: str) -> None:
+        finished = msg.startswith("  ") and msg.strip().split(":")[0].split()[-1] in names
+        done[0] += finished
+        report(msg.strip(), done[0] / len(names) if done[0] else math.nan)
+
+    diag = diagnose(dataset, choice, candidates=names, workers=workers, progress=progress)
+    r0 = diag.first
+    rows = [RankingRow(s.effect, s.error, s.error_reduction, s.delta_bic, s.significant, s.explains)
+            for s in r0.ranking]
+    v = r0.verdict
+    return DiagnoseView(r0.model.choice.label(), r0.model.error, rows, v.verdict,
+                        list(v.candidates), v.unexplained, v.suggest, list(r0.discrepancies))
+
+
+def compare_view(cmp: Comparison) -> CompareView:
+    """What the tab needs of a :class:`~rigctl.workbench.compare.Comparison`."""
+    from rigctl.workbench.feature_info import FEATURES
+    from rigctl.workbench.features import COVARIATES, EVENT_FEATURES
+    from rigctl.workbench.residual_map import COVARIATE_NAMES
+
+    overlays = []
+    for run, res, prep in list(zip(cmp.runs, cmp.results, cmp.dataset.runs,
+                                   strict=False))[:MAX_OVERLAY_RUNS]:
+        t = run.t_s - run.t_s[0]  # the model's time starts at the run's first sample
+        i = peak_indices(run.ft_N, OVERLAY_POINTS)
+        j = peak_indices(res.ft_N, OVERLAY_POINTS)
+        dm = res.d1_m - res.d2_m
+        overlays.append(Overlay(prep.name, t[i], run.ft_N[i], run.delta_m[i], res.t_s[j],
+                                res.ft_N[j], dm[j]))
+    amp = np.zeros((len(EVENT_FEATURES), len(COVARIATES)))
+    for tr in cmp.rmap.trends:
+        if abs(tr.t_stat) >= TREND_T_MIN:
+            amp[EVENT_FEATURES.index(tr.feature), COVARIATES.index(tr.covariate)] = (
+                np.sign(tr.slope) * tr.amplitude_z)
+    choice = cmp.fit.choice
+    return CompareView(
+        label=choice.label(), effects=tuple(choice.effects), error=float(cmp.fit.error),
+        n_events=cmp.dataset.n_events, n_runs=len(cmp.dataset.runs),
+        feature_z={k: float(v) for k, v in cmp.fit.feature_error.items()},
+        overlays=overlays, residual=amp,
+        features=tuple(FEATURES[f].phrase for f in EVENT_FEATURES),
+        covariates=tuple(COVARIATE_NAMES[c] for c in COVARIATES),
+        by_stage={k: dict(v) for k, v in cmp.rmap.by_stage.items()},
+        by_phase=dict(cmp.rmap.by_phase), discrepancies=list(cmp.discrepancies),
+        parameters=cmp.parameter_rows(), notes=list(cmp.dataset.notes),
+    )
