@@ -526,7 +526,14 @@ class RunPanel(QWidget):
         """The drivers' latched emergency stop on both stages, from any state; aborts a run.
 
         Returns what was done (for the status bar). In the run service the service does the same.
+        The run's abort is set before the stages are stopped, so that the protocol's step sees an
+        abort (status ``aborted``) rather than only the stage alarm the e-stop causes.
         """
+        running = self._controls is not None and self.busy
+        if running:
+            assert self._controls is not None
+            self._controls.abort(reason)
+            self._controls.resume()
         if self._client is not None:
             sent = self._client.send("estop", reason)
             text = ("EMERGENCY STOP sent to the run service" if sent
@@ -540,9 +547,7 @@ class RunPanel(QWidget):
                 failures = trigger_emergency_stop(rig, reason)
                 text = "EMERGENCY STOP: stages stopped, motion refused until reset" + (
                     f"; failed: {failures}" if failures else "")
-        if self._controls is not None and self.busy:
-            self._controls.abort(reason)
-            self._controls.resume()
+        if running:
             self._set_state("aborting")
         self._status(text, _RED)
         return text

@@ -289,6 +289,7 @@ class RunService:
     def emergency_stop(self, reason: str) -> None:
         """The drivers' latched emergency stop (every registered stage stopped, motion refused until
         reset), from any state; a run is aborted (its safe state cannot move while latched)."""
+        self.abort(reason)  # first: the step then sees the abort, not only the e-stop's stage alarm
         problems = []
         registries: list[Any] = []
         for stage in (self.rig.devices.tangential_stage, self.rig.devices.normal_stage):
@@ -297,7 +298,6 @@ class RunService:
                 registries.append(reg)
         for reg in registries:
             problems += [f"{f.stage_name}: {f.error}" for f in reg.trigger(reason)]
-        self.abort(reason)
         self._log("error", f"EMERGENCY STOP ({reason})" + (f"; failed: {'; '.join(problems)}"
                                                           if problems else ""))
 

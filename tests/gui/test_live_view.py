@@ -1,0 +1,267 @@
+"""The Live tab (offscreen): forces and camera during a short TLRE on the simulated rig at speed max,
+the run's events and file, the e-stop from the Live tab, the camera frames through the run service,
+and the pieces it is made of (frame reduction, P(x), Isum, warning forwarding, bounded memory)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import queue
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtCore import Qt
+
+from rigctl.config.loader import default_config
+from rigctl.gui.live_view import LiveView, file_info, format_bytes
+from rigctl.gui.main_window import ESTOP_KEY, MainWindow
+from rigctl.rigs import open_rig
+from rigctl.runservice.client import ServiceClient, spawn_service
+from rigctl.runservice.events import WarningForwarder, drop_events
+from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum, x_profile
+from rigctl.runservice.server import service_alive
+from rigctl.runservice.wire import Address, JobSpec
+from rigctl.storage.reader import RunReader
+
+SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
+              "preload_hold_s": "1", "settle_s": "1"}
+TIMEOUT_MS = 60_000
+
+
+@pytest.fixture
+def rig():
+    with open_rig("sim", default_config(), speed=math.inf) as r:
+        yield r
+        for stage in (r.devices.tangential_stage, r.devices.normal_stage):
+            stage.emergency_stop_registry.reset()
+
+
+def tlre_window(qtbot, rig, out: Path, camera: bool = True) -> MainWindow:
+    window = MainWindow(default_config(), "sim", rig=rig)
+    qtbot.addWidget(window)
+    panel = window.panel
+    panel.camera_check.setChecked(camera)
+    panel.protocol_combo.setCurrentText("tlre")
+    for k, v in SHORT_TLRE.items():
+        panel.set_param(k, v)
+    panel.out_edit.setText(str(out))
+    window.tabs.setCurrentWidget(window.live_view)
+    window.show()
+    qtbot.waitExposed(window)
+    return window
+
+
+def events_text(view: LiveView) -> str:
+    return view.events.toPlainText()
+
+
+def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, tmp_path):
+    out = tmp_path / "live.h5"
+    window = tlre_window(qtbot, rig, out)
+    view, panel = window.live_view, window.panel
+    assert window.tabs.tabText(window.tabs.currentIndex()) == "Live"
+    panel.start_button.click()
+    # during the run: forces plotted and camera images shown while it records
+    qtbot.waitUntil(lambda: view.images_shown >= 2 and view.plot.samples > 5000, timeout=TIMEOUT_MS)
+    assert panel.busy
+    qtbot.waitUntil(lambda: "size" in view.file_label.text(), timeout=5000)
+    assert str(out) in view.file_label.text() and "free on its disk" in view.file_label.text()
+    qtbot.waitUntil(lambda: panel.state == "idle", timeout=TIMEOUT_MS)
+    assert panel.last_outcome is not None and panel.last_outcome.status == "completed"
+    view.redraw()
+    # the force curves and Ft-delta hold the run's data (decimated, within the 60 s window)
+    x, y = view.plot.ft_curve.getData()
+    assert x is not None and len(x) > 100 and np.nanmax(y) > 10.0  # Ft rose while sliding
+    _, fn = view.plot.fn_curve.getData()
+    assert np.nanmax(fn) > 250.0  # the 300 N pre-load
+    dx, dy = view.plot.phase_curve.getData()
+    assert len(dx) > 100 and np.nanmax(dx) > 10e-6  # delta grew while Ft rose
+    # camera: an image, its P(x) (sums to 1 over the columns) and Isum values of every frame
+    image = view.image_item.image
+    assert image is not None and image.ndim == 2 and image.shape[1] <= 320
+    px, py = view.profile_curve.getData()
+    assert len(px) == image.shape[1] and abs(float(np.sum(py)) - 1.0) < 1e-9
+    assert px[0] > 0 and px[-1] < 1
+    it, isum = view.isum_curve.getData()
+    assert len(it) >= view.frames_received >= 2 and np.all(np.asarray(isum) > 0)
+    # events: start and outcome, each with its level; the file label: path, size, free space
+    text = events_text(view)
+    assert "starting tlre" in text and "completed" in text
+    qtbot.waitUntil(lambda: f"size {format_bytes(out.stat().st_size)}" in view.file_label.text(),
+                    timeout=5000)
+    with RunReader(out) as r:
+        assert r.status == "completed"
+
+
+def test_estop_from_the_live_tab_aborts_and_is_listed(qtbot, rig, tmp_path):
+    out = tmp_path / "live_estop.h5"
+    window = tlre_window(qtbot, rig, out, camera=False)
+    view, panel = window.live_view, window.panel
+    stage = rig.devices.tangential_stage
+    x0 = stage.position_m()
+    panel.start_button.click()
+    qtbot.waitUntil(lambda: stage.position_m() > x0 + 30e-6, timeout=TIMEOUT_MS)  # sliding
+    assert window.tabs.currentWidget() is view and window.estop_button.isVisible()
+    view.events.setFocus()
+    qtbot.keyClick(view.events, getattr(Qt.Key, f"Key_{ESTOP_KEY}"))
+    assert stage.emergency_stop_registry.reason is not None
+    qtbot.waitUntil(lambda: panel.state == "idle", timeout=TIMEOUT_MS)
+    assert panel.last_outcome is not None and panel.last_outcome.status == "aborted"
+    assert not stage.status().moving
+    text = events_text(view)
+    assert "EMERGENCY STOP" in text and "aborted" in text
+    # the device poll sees the latched e-stop and lists it
+    qtbot.waitUntil(lambda: "emergency stop latched" in events_text(view), timeout=5000)
+
+
+def test_history_stays_bounded_when_fed_an_hour(qtbot):
+    view = LiveView(rate_hz=1024.0, window_s=10.0, camera_rate_hz=60.0)
+    qtbot.addWidget(view)
+    t0 = 0.0
+    img = np.full((48, 64), 100, np.uint8)
+    for _ in range(3600 // 10):  # 10 s of data per step
+        t = t0 + np.arange(10240) / 1024.0
+        view.feed_blocks([{"t_s": t, "ft_N": np.sin(t), "fn_N": np.full_like(t, 300.0),
+                           "d1_m": t * 1e-6, "d2_m": np.zeros_like(t)}])
+        ft = t0 + np.arange(600) / 60.0
+        view.feed_frames([LiveFrame(float(ft[-1]), img, 1, ft, np.full(600, 1.0))])
+        t0 += 10.0
+    assert view.plot.samples == 3600 * 1024
+    assert len(view.plot.history) <= 10 * 1024 + 1
+    assert len(view.isum_history) <= 10 * 60 + 1
+    assert view.redraw()
+    x, _ = view.plot.ft_curve.getData()
+    assert x[-1] - x[0] <= 10.0 + 1e-6 and len(x) <= view.plot.max_points
+    view.shutdown()
+
+
+# ---------------------------------------------------------------------- the pieces
+def test_profile_and_isum_follow_the_papers_definitions():
+    image = np.zeros((4, 5), np.uint8)
+    image[:, 0] = 10  # back end bright
+    image[1, 3] = 30
+    assert intensity_sum(image) == 4 * 10 + 30  # Eq. 1: every pixel
+    p = x_profile(image)
+    np.testing.assert_allclose(p, [40 / 70, 0, 0, 30 / 70, 0])  # Eqs. 2-3
+    assert not np.any(x_profile(np.zeros((3, 3), np.uint8)))  # black: no contact, no NaN
+
+
+def test_downsample_averages_full_blocks():
+    image = np.arange(480 * 640, dtype=np.uint32).reshape(480, 640) % 256
+    small, factor = downsample(image.astype(np.uint8), 320)
+    assert factor == 2 and small.shape == (240, 320) and small.dtype == np.uint8
+    assert small[0, 0] == round(np.mean(image[:2, :2]))
+    same, f1 = downsample(np.zeros((10, 100), np.uint8), 320)
+    assert f1 == 1 and same.shape == (10, 100)
+    odd, f3 = downsample(np.ones((7, 700), np.uint8) * 9, 320)
+    assert f3 == 3 and odd.shape == (2, 233) and np.all(odd == 9)
+
+
+def test_reducer_sends_a_few_images_but_every_isum():
+    clock = [0.0]
+    reducer = FrameReducer(rate_hz=4.0, max_width_px=32, clock=lambda: clock[0])
+    sent = []
+    for i in range(60):  # one second of 60 Hz frames
+        clock[0] = i / 60.0
+        img = np.full((40, 64), i, np.uint8)
+        out = reducer.add(i / 60.0, img)
+        if out is not None:
+            sent.append(out)
+    last = reducer.flush()
+    assert last is not None
+    sent.append(last)
+    assert 4 <= len(sent) <= 6
+    isums = np.concatenate([s.isum for s in sent])
+    np.testing.assert_allclose(isums, [40 * 64 * i for i in range(60)])
+    assert np.all(np.diff(np.concatenate([s.isum_t_s for s in sent])) > 0)
+    assert all(s.image.shape == (20, 32) and s.factor == 2 for s in sent)
+    assert reducer.flush() is None
+
+
+def test_warnings_and_drops_become_events():
+    got: list[tuple[str, str]] = []
+    fwd = WarningForwarder(lambda level, text: got.append((level, text))).install()
+    try:
+        logging.getLogger("rigctl.acquisition.session").warning("d1_m: probe over range at %d", 3)
+        logging.getLogger("rigctl.acquisition.session").info("not an event")
+        logging.getLogger("somebody.else").warning("not ours")
+        logging.getLogger("rigctl.runservice").warning("sent by the service itself")
+    finally:
+        fwd.remove()
+    logging.getLogger("rigctl.acquisition.session").warning("after removal")
+    assert got == [("warning", "d1_m: probe over range at 3")]
+
+    @dataclass
+    class Stats:
+        daq_dropped: int = 0
+        frames_dropped: int = 0
+
+    seen: dict[str, int] = {}
+    assert list(drop_events(Stats(), seen)) == []
+    events = list(drop_events(Stats(daq_dropped=12), seen))
+    assert len(events) == 1 and "12 samples lost by the DAQ" in events[0][1]
+    assert list(drop_events(Stats(daq_dropped=12), seen)) == []  # only growth is news
+
+
+def test_file_info_of_a_missing_file_says_so(tmp_path):
+    info = file_info(tmp_path / "not_yet.h5")
+    assert info.size_bytes is None and info.free_bytes and "not there yet" in info.problem
+    (tmp_path / "a.h5").write_bytes(b"x" * 2500)
+    info = file_info(tmp_path / "a.h5")
+    assert info.size_bytes == 2500 and format_bytes(2500) == "2.5 kB"
+
+
+@pytest.mark.slow
+def test_run_service_forwards_camera_images_and_pause_resume_events(tmp_path):
+    address = Address(Path(f"/tmp/rigctl-live-{os.getpid()}"))
+    proc = spawn_service(address, "sim", "10", extra=["--idle-exit-s", "1"])
+    try:
+        deadline = time.monotonic() + 90
+        while not service_alive(address):
+            assert time.monotonic() < deadline and proc.poll() is None, "service did not start"
+            time.sleep(0.1)
+        inbox: queue.Queue = queue.Queue()
+        client = ServiceClient.connect(address, lambda k, p: inbox.put((k, p)))
+        out = tmp_path / "service_live.h5"
+        client.send("start", JobSpec("tlre", SHORT_TLRE, str(out), camera=True, speed_text="10"))
+        frames: list[LiveFrame] = []
+        logs: list[str] = []
+        paused = resumed = False
+        deadline = time.monotonic() + 120
+        while True:
+            kind, payload = inbox.get(timeout=max(0.1, deadline - time.monotonic()))
+            if kind == "frame":
+                frames.append(payload)
+                if len(frames) == 3 and not paused:
+                    client.send("pause")
+                    paused = True
+                elif paused and not resumed:
+                    client.send("resume")
+                    resumed = True
+            elif kind == "log":
+                logs.append(payload[1])
+            elif kind == "done":
+                break
+        assert payload.kind == "run" and payload.outcome.status == "completed"
+        assert len(frames) >= 3
+        for f in frames:
+            assert isinstance(f, LiveFrame) and f.image.dtype == np.uint8
+            assert f.image.shape[1] <= 320 and f.factor >= 2  # 640 px wide camera, downsampled
+        isum_t = np.concatenate([f.isum_t_s for f in frames])
+        assert np.all(np.diff(isum_t) > 0)
+        # Isum of every camera frame, far more values than images sent
+        assert isum_t.size > 3 * len(frames)
+        assert any("paused" in line for line in logs) and any("resumed" in line for line in logs)
+        client.send("shutdown")
+        client.close()
+        proc.wait(60)
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(30)
+        shutil.rmtree(address.directory, ignore_errors=True)
