@@ -17,6 +17,8 @@ from rigctl.config import RigConfig
 from rigctl.gui.devices_panel import DevicesPanel
 from rigctl.gui.live_view import LiveView
 from rigctl.gui.run_panel import RunPanel
+from rigctl.gui.runs_panel import RunsPanel, fill_run_panel
+from rigctl.gui.workbench_panel import WorkbenchPanel
 from rigctl.rigs import OpenRig
 from rigctl.runservice.devices import jog, reset_emergency_stop, snapshot
 from rigctl.runservice.wire import Address
@@ -25,7 +27,7 @@ ESTOP_KEY = "F12"
 
 
 class MainWindow(QMainWindow):
-    """Emergency stop + tabs (Devices, Protocols, Live)."""
+    """Emergency stop + tabs (Devices, Protocols, Live, Runs, Workbench)."""
 
     def __init__(self, config: RigConfig, backend: str = "sim", *, rig: OpenRig | None = None,
                  speed: str = "1", service: Address | None = None, config_path: str | None = None,
@@ -69,6 +71,13 @@ class MainWindow(QMainWindow):
         self.tabs.addTab(self.panel, "Protocols")
         self.live_view = self._live_view(config)
         self.tabs.addTab(self.live_view, "Live")
+        self.runs = RunsPanel()
+        self.runs.run_again.connect(self._run_again)
+        self.runs.status_message.connect(self.statusBar().showMessage)
+        self.tabs.addTab(self.runs, "Runs")
+        self.workbench = WorkbenchPanel()
+        self.workbench.status_message.connect(self.statusBar().showMessage)
+        self.tabs.addTab(self.workbench, "Workbench")
         self.tabs.setCurrentWidget(self.panel)
         central = QWidget()
         layout = QVBoxLayout(central)
@@ -115,6 +124,16 @@ class MainWindow(QMainWindow):
                 f"; alarm reset failed: {'; '.join(problems)}" if problems else ""))
             self._local_snapshot()
 
+    def _run_again(self, protocol: str, parameters: dict[str, object]) -> None:
+        """The Runs tab's "run again with these parameters": fill the Protocols tab, show it."""
+        try:
+            text = fill_run_panel(self.panel, protocol, parameters)
+        except ValueError as exc:
+            self.statusBar().showMessage(f"run again: {exc}")
+            return
+        self.tabs.setCurrentWidget(self.panel)
+        self.statusBar().showMessage(text + "; check them and press Start")
+
     def emergency_stop(self, reason: str = "emergency stop by the operator") -> None:
         text = self.panel.emergency_stop(reason)
         self.statusBar().showMessage(text)
@@ -123,3 +142,5 @@ class MainWindow(QMainWindow):
         self.panel.closeEvent(event)  # a run going: ask, abort, close once safe
         if event.isAccepted():
             self.live_view.shutdown()
+            self.runs.shutdown()
+            self.workbench.shutdown()

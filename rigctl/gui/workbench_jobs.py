@@ -78,6 +78,9 @@ class CompareView:
     residual: FloatArray
     """Signed trend amplitude (z) of each feature (rows) against each covariate (columns)."""
     features: tuple[str, ...]
+    """The features' names (``peak_N``, ...), rows of :attr:`residual`."""
+    phrases: tuple[str, ...]
+    """What each feature is, in words."""
     covariates: tuple[str, ...]
     by_stage: dict[str, dict[str, float]]
     by_phase: dict[str, float]
@@ -186,7 +189,7 @@ def compare_view(cmp: Comparison) -> CompareView:
         n_events=cmp.dataset.n_events, n_runs=len(cmp.dataset.runs),
         feature_z={k: float(v) for k, v in cmp.fit.feature_error.items()},
         overlays=overlays, residual=amp,
-        features=tuple(FEATURES[f].phrase for f in EVENT_FEATURES),
+        features=EVENT_FEATURES, phrases=tuple(FEATURES[f].phrase for f in EVENT_FEATURES),
         covariates=tuple(COVARIATE_NAMES[c] for c in COVARIATES),
         by_stage={k: dict(v) for k, v in cmp.rmap.by_stage.items()},
         by_phase=dict(cmp.rmap.by_phase), discrepancies=list(cmp.discrepancies),

@@ -30,7 +30,6 @@ from PySide6.QtWidgets import (
     QComboBox,
     QFileDialog,
     QHBoxLayout,
-    QHeaderView,
     QLabel,
     QListWidget,
     QPlainTextEdit,
@@ -69,6 +68,14 @@ def _z_colour(z: float, zmax: float) -> QColor:
     a = min(abs(z) / zmax, 1.0) if zmax > 0 else 0.0
     r, g, b = (214, 96, 77) if z > 0 else (67, 147, 195)
     return QColor(round(255 + a * (r - 255)), round(255 + a * (g - 255)), round(255 + a * (b - 255)))
+
+
+def _short(feature: str) -> str:
+    """A feature's name without its unit suffix (``k_stick_N_per_m`` -> ``k_stick``)."""
+    for suffix in ("_N_per_m", "_N_per_s", "_N", "_s", "_m"):
+        if feature.endswith(suffix):
+            return feature[: -len(suffix)]
+    return feature
 
 
 class WorkbenchPanel(QWidget):
@@ -194,6 +201,7 @@ class WorkbenchPanel(QWidget):
         pl.addWidget(self.glw, 1)
 
         self.residual_table = QTableWidget(0, 0)
+        self.residual_table.setWordWrap(False)
         self.residual_table.setToolTip("trend of each slip feature's misfit (z, model - measured) "
                                        "with each covariate; |t| < 3 shown blank")
         self.ranking_table = QTableWidget(0, 6)
@@ -232,6 +240,7 @@ class WorkbenchPanel(QWidget):
         split.addWidget(self.details)
         split.setStretchFactor(0, 3)
         split.setStretchFactor(1, 2)
+        split.setSizes([640, 620])
         top = QVBoxLayout(self)
         top.addLayout(data_row)
         top.addLayout(model_row)
@@ -497,6 +506,9 @@ class WorkbenchPanel(QWidget):
             self.history_plot.addItem(label)
             self._history_labels.append(label)
         self.history_plot.setXRange(-0.5, len(self.history) - 0.5)
+        logs = np.log10(y)
+        self.history_plot.setYRange(min(float(logs.min()), 0.0) - 0.3, float(logs.max()) + 0.4,
+                                    padding=0)
 
     def _step_name(self, i: int) -> str:
         label = self.history[i][0]
@@ -508,17 +520,21 @@ class WorkbenchPanel(QWidget):
         t.setRowCount(len(v.features))
         t.setColumnCount(len(v.covariates))
         t.setHorizontalHeaderLabels(list(v.covariates))
-        t.setVerticalHeaderLabels([f[:34] for f in v.features])
+        t.setVerticalHeaderLabels([_short(f) for f in v.features])
+        for i, phrase in enumerate(v.phrases):
+            header = t.verticalHeaderItem(i)
+            if header is not None:
+                header.setToolTip(phrase)
         zmax = max(1.0, float(np.max(np.abs(v.residual)))) if v.residual.size else 1.0
         for i in range(len(v.features)):
             for j in range(len(v.covariates)):
                 z = float(v.residual[i, j])
-                item = _item(f"{z:+.1f}" if z else "", f"{v.features[i]} vs {v.covariates[j]}: "
+                item = _item(f"{z:+.1f}" if z else "", f"{v.phrases[i]} vs {v.covariates[j]}: "
                              f"trend amplitude {z:+.2f} z")
                 item.setBackground(QBrush(_z_colour(z, zmax)))
                 item.setTextAlignment(Qt.AlignmentFlag.AlignCenter)
                 t.setItem(i, j, item)
-        t.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
+        t.resizeColumnsToContents()
 
     def _show_ranking(self, d: DiagnoseView) -> None:
         self.diagnosis = d
