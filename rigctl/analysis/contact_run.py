@@ -127,6 +127,7 @@ class ContactAnalysis:
             "profile_bins": ci.n_bins,
             "isum_max": float(np.max(ci.isum)) if ci.n_frames else math.nan,
             "wsm": {"scales_px": list(self.wsm.scales_px), "weights": list(self.wsm.weights),
+                    "edge_z": self.wsm.edge_z, "own_z": self.wsm.own_z,
                     "z": self.wsm.z, "min_spot_px": self.wsm.min_spot_px},
             "passes": [p.to_dict() for p in self.passes],
             "notes": list(self.notes),

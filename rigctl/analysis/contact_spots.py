@@ -8,13 +8,17 @@ details are not in this paper, so rigctl builds its own, documented here (docs/a
 2. smooth ``I0`` with Gaussians of ``scales_px`` (0 = the image itself; ``skimage.filters.gaussian``)
    and superpose them with ``weights`` (sum 1):  ``S = sum_k w_k G_{s_k} * I0``.  The finest scale
    keeps the spots' edges, the coarser ones reject lone noise pixels and join a spot's faint rim;
-3. the white read noise of RMS ``sigma`` (robust: 1.4826 x the median absolute deviation of the
-   dark pixels) becomes noise of RMS ``sigma ||sum_k w_k g_k||_2`` in S (the L2 norm of the
-   superposed kernel, computed by filtering a unit impulse); a pixel is in contact where S exceeds
-   ``z`` times that;
-4. connected groups smaller than ``min_spot_px`` are dropped
-   (``skimage.morphology.remove_small_objects``) and the rest labelled as spots
-   (``skimage.measure.label``, 8-connectivity).
+3. **detection**: the white read noise of RMS ``sigma`` (robust: 1.4826 x the median absolute
+   deviation of the dark pixels) becomes noise of RMS ``sigma ||sum_k w_k g_k||_2`` in S (the L2
+   norm of the superposed kernel, computed by filtering a unit impulse); a pixel is a spot seed
+   where S exceeds ``z`` times that;
+4. **extent** (a hysteresis threshold between the two images): smoothing spreads a bright spot, so
+   a spot's pixels are those of the unsmoothed ``I0`` above ``edge_z sigma`` that are connected
+   (8-connectivity, ``skimage.measure.label``) to a seed; groups without a seed are noise. Near a
+   bright spot S is high, so a noise pixel there is a seed too: a group is also required to stand
+   out by itself, ``sum(I0) / (sigma sqrt(n)) > own_z`` over its n pixels (a matched sum);
+5. spots smaller than ``min_spot_px`` are dropped (``skimage.morphology.remove_small_objects``)
+   and the rest labelled.
 """
 
 from __future__ import annotations
@@ -38,8 +42,10 @@ class WsmSettings:
 
     scales_px: tuple[float, ...] = (0.0, 1.0, 2.0)
     weights: tuple[float, ...] = (0.5, 0.3, 0.2)
-    z: float = 4.0
-    min_spot_px: int = 3
+    z: float = 5.0
+    edge_z: float = 2.5
+    own_z: float = 4.0
+    min_spot_px: int = 1
 
     def __post_init__(self) -> None:
         if len(self.scales_px) != len(self.weights) or not self.scales_px:
@@ -48,8 +54,9 @@ class WsmSettings:
             raise ValueError("WSM scales and weights must be >= 0")
         if not math.isclose(sum(self.weights), 1.0, rel_tol=1e-9):
             raise ValueError(f"WSM weights must sum to 1 (they sum to {sum(self.weights)})")
-        if self.z <= 0 or self.min_spot_px < 1:
-            raise ValueError("WSM threshold z must be > 0 and the smallest spot >= 1 px")
+        if min(self.z, self.edge_z, self.own_z) <= 0 or self.min_spot_px < 1:
+            raise ValueError("WSM thresholds z, edge_z, own_z must be > 0 and the smallest spot "
+                             ">= 1 px")
 
 
 def dark_noise(frame: NDArray[np.number], dark_level: float) -> float:
@@ -86,7 +93,7 @@ class Spots:
     labels: NDArray[np.int32]
     n_spots: int
     threshold: float
-    """Grey-level threshold applied to S."""
+    """Grey-level threshold applied to S (detection)."""
 
     @property
     def area_px(self) -> int:
@@ -105,9 +112,20 @@ def extract_spots(frame: NDArray[np.number], dark_level: float,
     if img.ndim != 2:
         raise ValueError(f"a frame must be 2-D, got shape {img.shape}")
     sigma = dark_noise(img, dark_level) if noise_rms is None else float(noise_rms)
-    s = superpose(img - dark_level, settings)
+    i0 = img - dark_level
+    s = superpose(i0, settings)
     thr = settings.z * sigma * noise_gain(settings)
-    mask = remove_small_objects(s > thr, max_size=settings.min_spot_px - 1, connectivity=2)
+    bright = i0 > settings.edge_z * sigma
+    groups = label(bright, connectivity=2)
+    seeded = np.zeros(int(groups.max()) + 1, dtype=bool)
+    seeded[groups[(s > thr) & bright]] = True
+    n_px = np.bincount(groups.ravel())
+    total = np.bincount(groups.ravel(), weights=i0.ravel())
+    own = total / (sigma * np.sqrt(np.maximum(n_px, 1)))
+    keep = seeded & (own > settings.own_z)
+    keep[0] = False
+    mask = keep[groups]
+    mask = remove_small_objects(mask, max_size=settings.min_spot_px - 1, connectivity=2)
     labels, n = label(mask, connectivity=2, return_num=True)
     return Spots(mask, labels.astype(np.int32), int(n), thr)
 
