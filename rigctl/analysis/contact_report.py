@@ -63,10 +63,13 @@ def contact_sections(ca: ContactAnalysis | None, absent: str, mech: Mechanics, f
                          str(c.props.n_contact_px)])
     series = f"{prefix}contact_frames.csv"
     write_series(ca, folder / series)
-    a, _, r2, n_fit = figures_contact.isum_fit(ca.fn_frames_N, ci.isum)
-    fit = (f" Isum against Fn below {figures_contact.ISUM_LINEAR_BELOW_N:.0f} N: slope "
-           f"{_f(a)} per N, R^2 = {_f(r2, 5)} over {n_fit} frames." if math.isfinite(a) else
-           " Fn does not vary enough in this run for the Isum-Fn line.")
+    a, _, r2, n_fit = figures_contact.isum_fit(ca.fn_frames_N, ci.isum, ca.ft_frames_N)
+    below = figures_contact.ISUM_LINEAR_BELOW_N
+    if math.isfinite(a):
+        fit = (f" Isum against Fn under normal load only, below {below:.0f} N: slope {_f(a)} "
+               f"per N, R^2 = {_f(r2, 5)} over {n_fit} frames.")
+    else:
+        fit = " Fn does not vary enough without tangential load in this run for the Isum-Fn line."
     im1 = [f"pass {pc.pass_index + 1}: {_f(pc.im1)}" for pc in ca.passes]
     text = (f"{ci.n_frames} frames; contact region image columns {r.col0}-{r.col1 - 1} "
             f"(x = 0 at the {'left' if r.back_end_left else 'right'}), dark level "

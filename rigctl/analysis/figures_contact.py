@@ -24,6 +24,7 @@ from rigctl.analysis.surface_psd import SurfacePsd
 MAX_ROWS = 1500
 ISUM_LINEAR_BELOW_N = 300.0
 """Sec. 2.2: Isum is approximately linear in Fn below 300 N (Fig. 3a)."""
+UNLOADED_FT_FRACTION = 0.02
 MIN_FN_SPAN_N = 30.0
 """The line is fitted only when the frames' Fn spans at least this much (a loading, not a hold)."""
 
@@ -35,13 +36,17 @@ def _rgb(c: tuple[int, int, int]) -> tuple[float, float, float]:
     return (c[0] / 255, c[1] / 255, c[2] / 255)
 
 
-def isum_fit(fn_N: np.ndarray, isum: np.ndarray,
+def isum_fit(fn_N: np.ndarray, isum: np.ndarray, ft_N: np.ndarray | None = None,
              below_N: float = ISUM_LINEAR_BELOW_N) -> tuple[float, float, float, int]:
     """Least-squares line Isum = a Fn + b over frames with 0 < Fn <= ``below_N``: (a, b, R^2, n).
 
-    NaN when those frames' Fn spans less than ``MIN_FN_SPAN_N`` (no loading in the run).
+    Sec. 2.2 states the line for normal loading (the NLRE): with ``ft_N`` given, only frames
+    without tangential load (``|Ft| <= UNLOADED_FT_FRACTION Fn + 0.5 N``) count. NaN when the
+    frames' Fn spans less than ``MIN_FN_SPAN_N`` (no loading in the run).
     """
     sel = (fn_N > 0.0) & (fn_N <= below_N) & np.isfinite(isum)
+    if ft_N is not None:
+        sel &= np.abs(ft_N) <= UNLOADED_FT_FRACTION * fn_N + 0.5
     n = int(np.count_nonzero(sel))
     if n < 3 or float(np.ptp(fn_N[sel])) < MIN_FN_SPAN_N:
         return math.nan, math.nan, math.nan, n
@@ -65,11 +70,12 @@ def isum_figure(ca: ContactAnalysis, folder: Path, name: str = "isum.png") -> st
     axf.plot(ci.t_s, ca.fn_frames_N, lw=0.8, color="#d62728")
     axf.set_ylabel("Fn [N]", color="#d62728")
     ax2.plot(ca.fn_frames_N, ci.isum / 1e6, ".", ms=2, color="#555")
-    a, b, r2, n = isum_fit(ca.fn_frames_N, ci.isum)
+    a, b, r2, n = isum_fit(ca.fn_frames_N, ci.isum, ca.ft_frames_N)
     if math.isfinite(a):
         f = np.linspace(0.0, ISUM_LINEAR_BELOW_N, 2)
         ax2.plot(f, (a * f + b) / 1e6, color="#9467bd", lw=1.5,
-                 label=f"line below {ISUM_LINEAR_BELOW_N:.0f} N, R^2 = {r2:.4f} ({n} frames)")
+                 label=f"normal loading below {ISUM_LINEAR_BELOW_N:.0f} N: R^2 = {r2:.4f} "
+                       f"({n} frames)")
         ax2.legend(fontsize=8, loc="lower right")
     ax2.set_xlabel("Fn [N]")
     ax2.set_ylabel("Isum [10^6 grey levels]")
@@ -179,10 +185,11 @@ def fig9(pc: PassContact, folder: Path, name: str) -> str:
         ax = axs[row, 1]
         names = list(CATEGORIES)
         vals = [c.props.proportions[k] for k in names]
-        ax.pie(vals, colors=[CATEGORY_COLOURS[k] for k in names],
-               labels=[f"{k}\n{100 * v:.1f} %" for k, v in zip(names, vals, strict=True)],
-               textprops={"fontsize": 8}, wedgeprops={"edgecolor": "w"})
-        ax.set_title(f"{c.props.n_contact_px} contact pixels", fontsize=9)
+        wedges, _ = ax.pie(vals, colors=[CATEGORY_COLOURS[k] for k in names],
+                           wedgeprops={"edgecolor": "w"})
+        ax.legend(wedges, [f"{k}: {100 * v:.1f} %" for k, v in zip(names, vals, strict=True)],
+                  fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2)
+        ax.set_title(f"proportions of {c.props.n_contact_px} contact pixels", fontsize=9)
     return save(fig, folder, name)
 
 

@@ -104,7 +104,7 @@ def test_isum_is_linear_in_fn_below_300_N_on_a_simulated_nlre(tmp_path: Path) ->
     ra = analyse_run(path)
     ca = ra.contact
     assert ca is not None and ca.passes == []
-    a, _, r2, n = isum_fit(ca.fn_frames_N, ca.intensity.isum)
+    a, _, r2, n = isum_fit(ca.fn_frames_N, ca.intensity.isum, ca.ft_frames_N)
     assert a > 0 and r2 > 0.99 and n > 30
 
 
