@@ -186,6 +186,8 @@ class RunsPanel(QWidget):
         self.progress.setTextVisible(True)
         self.progress.setFormat("")
         self.progress.setMaximumHeight(16)
+        self.progress.setMinimumWidth(260)
+        self.progress.setVisible(False)  # shown from the first analysis on
 
         self.glw = pg.GraphicsLayoutWidget()
         self.glw.setBackground("w")
@@ -524,6 +526,7 @@ class RunsPanel(QWidget):
         self.report = None
         self.report_view.setPlainText(f"analysing {self.path} into {out} …")
         self.figure_label.clear()
+        self.progress.setVisible(True)
         self.progress.setRange(0, 0)
         self.progress.setFormat("analysis")
         try:

@@ -30,6 +30,7 @@ from PySide6.QtWidgets import (
     QComboBox,
     QFileDialog,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QListWidget,
     QPlainTextEdit,
@@ -167,7 +168,7 @@ class WorkbenchPanel(QWidget):
         self.time_plot.setLabel("bottom", "time from the run's start (s)")
         self.time_plot.getAxis("bottom").enableAutoSIPrefix(False)
         self.time_plot.showGrid(x=True, y=True, alpha=0.3)
-        self.time_plot.addLegend(offset=(-10, 10))
+        self.time_plot.addLegend(offset=(-10, -10))
         self.meas_curve = pg.PlotCurveItem(pen=pg.mkPen(_MEAS, width=1), name="measured")
         self.model_curve = pg.PlotCurveItem(pen=pg.mkPen(_MODEL, width=1), name="model")
         self.time_plot.addItem(self.meas_curve)
@@ -181,8 +182,10 @@ class WorkbenchPanel(QWidget):
         self.loop_plot.addItem(self.meas_loop)
         self.loop_plot.addItem(self.model_loop)
         self.history_plot = self.glw.addPlot(row=1, col=1)
-        self.history_plot.setLabel("left", "error E (log)")
-        self.history_plot.setLogMode(y=True)
+        self.history_plot.setLabel("left", "error E (log scale)")
+        self.history_plot.getAxis("left").setTicks([[(math.log10(v), f"{v:g}") for v in (
+            0.001, 0.01, 0.1, 1.0, 10.0, 100.0, 1000.0, 1e4)], [(math.log10(v), f"{v:g}") for v in (
+            0.003, 0.03, 0.3, 3.0, 30.0, 300.0, 3000.0)]])
         self.history_plot.showGrid(x=False, y=True, alpha=0.3)
         self.history_plot.setTitle("error history (dotted: measurement scatter)", size="9pt")
         self.history_curve = pg.PlotDataItem(pen=pg.mkPen(_MODEL, width=2), symbol="o",
@@ -202,6 +205,7 @@ class WorkbenchPanel(QWidget):
 
         self.residual_table = QTableWidget(0, 0)
         self.residual_table.setWordWrap(False)
+        self.residual_table.horizontalHeader().setStyleSheet("QHeaderView { font-size: 8pt; }")
         self.residual_table.setToolTip("trend of each slip feature's misfit (z, model - measured) "
                                        "with each covariate; |t| < 3 shown blank")
         self.ranking_table = QTableWidget(0, 6)
@@ -485,7 +489,7 @@ class WorkbenchPanel(QWidget):
         self.model_curve.setData(o.t_model_s, o.ft_model_N)
         self.meas_loop.setData(o.delta_m - o.delta_m[0], o.ft_N)
         self.model_loop.setData(o.delta_model_m - o.delta_model_m[0], o.ft_model_N)
-        self.time_plot.setTitle(f"{o.name}: measured (grey) and {self.view.label} (red)",
+        self.time_plot.setTitle(f"{Path(o.name).name}: measured (grey) and {self.view.label} (red)",
                                 size="9pt")
 
     def _show_history(self) -> None:
@@ -496,17 +500,16 @@ class WorkbenchPanel(QWidget):
             self.history_curve.setData([], [])
             return
         x = np.arange(len(self.history), dtype=float)
-        y = np.array([max(e, 1e-6) for _, e in self.history])
-        self.history_curve.setData(x, y)
+        logs = np.log10([max(e, 1e-6) for _, e in self.history])
+        self.history_curve.setData(x, logs)
         ticks = [(float(i), self._step_name(i)) for i in range(len(self.history))]
         self.history_plot.getAxis("bottom").setTicks([ticks])
         for xi, (_, e) in zip(x, self.history, strict=True):
             label = pg.TextItem(f"{e:.3g}", color=_MODEL, anchor=(0.5, 1.2))
-            label.setPos(float(xi), math.log10(max(e, 1e-6)))
+            label.setPos(float(xi), float(np.log10(max(e, 1e-6))))
             self.history_plot.addItem(label)
             self._history_labels.append(label)
         self.history_plot.setXRange(-0.5, len(self.history) - 0.5)
-        logs = np.log10(y)
         self.history_plot.setYRange(min(float(logs.min()), 0.0) - 0.3, float(logs.max()) + 0.4,
                                     padding=0)
 
@@ -519,7 +522,7 @@ class WorkbenchPanel(QWidget):
         t.clear()
         t.setRowCount(len(v.features))
         t.setColumnCount(len(v.covariates))
-        t.setHorizontalHeaderLabels(list(v.covariates))
+        t.setHorizontalHeaderLabels([c.replace(" ", "\n", 1) for c in v.covariates])
         t.setVerticalHeaderLabels([_short(f) for f in v.features])
         for i, phrase in enumerate(v.phrases):
             header = t.verticalHeaderItem(i)
@@ -534,7 +537,7 @@ class WorkbenchPanel(QWidget):
                 item.setBackground(QBrush(_z_colour(z, zmax)))
                 item.setTextAlignment(Qt.AlignmentFlag.AlignCenter)
                 t.setItem(i, j, item)
-        t.resizeColumnsToContents()
+        t.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
 
     def _show_ranking(self, d: DiagnoseView) -> None:
         self.diagnosis = d
