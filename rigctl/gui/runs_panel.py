@@ -60,6 +60,8 @@ READ_CHUNK = 1 << 17
 FOLLOW_INTERVAL_MS = 2000
 """How often a run still being recorded is looked at for new samples."""
 OVERVIEW_POINTS = 6000
+MAX_READ_FAILURES = 3
+"""Consecutive failed reads of a run being written before the tab stops following it."""
 _BLUE, _RED, _GREEN, _ORANGE = "#1565c0", "#c62828", "#2e7d32", "#e65100"
 _CHANNELS = ("t_s", "ft_N", "fn_N", "delta_m")
 
@@ -139,6 +141,7 @@ class RunsPanel(QWidget):
         self.summary: dict[str, Any] = {}
         self.report: AnalysisDone | None = None
         self._reader: Any = None
+        self._read_failures = 0
         self._envelope = PeakEnvelope("ft_N", OVERVIEW_POINTS)
         self._protocol = ""
         self._parameters: dict[str, Any] = {}
@@ -406,8 +409,14 @@ class RunsPanel(QWidget):
             if not behind or status != self.status:
                 self._show_h5_details(reader, status)
         except Exception as exc:
-            self._error(f"reading {self.path}: {exc}")
+            self._read_failures += 1
+            if self.status == RunStatus.RUNNING and self._read_failures < MAX_READ_FAILURES:
+                self._say(f"reading {self.path} (being written): {exc}; trying again")
+                self._timer.start(FOLLOW_INTERVAL_MS)
+            else:
+                self._error(f"reading {self.path}: {exc}")
             return
+        self._read_failures = 0
         self._redraw()
         if behind:
             self._timer.start(0)
