@@ -1,7 +1,7 @@
 """The mechanical analyses of one run, gathered: passes, cycles, friction, stiffness, repeatability.
 
 Everything here needs only the force and displacement samples, so a CSV from another rig gets all of
-it. The image analyses (:mod:`rigctl.analysis.images`) add to it when the run has frames.
+it. The image analyses (:mod:`rigctl.analysis.contact_run`) add to it when the run has frames.
 """
 
 from __future__ import annotations
