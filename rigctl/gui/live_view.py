@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import math
 import os
 import shutil
 import time
@@ -46,6 +47,11 @@ EVENT_LINES = 1000
 """Lines kept in the events pane (older ones are dropped from the view, never from the run file)."""
 CAMERA_RATE_HZ = 60.0
 """Camera frame rate the Isum history is sized for (more frames just shorten the window shown)."""
+
+RANGE_MARGIN = 0.1
+"""Room left around the data when an axis range is set (fraction of the data's span)."""
+RANGE_MIN_FILL = 0.4
+"""An axis range is kept while the data stay inside it and fill at least this fraction of it."""
 
 _BLUE, _RED, _ORANGE, _GREY = "#1565c0", "#c62828", "#e65100", "#555555"
 _LEVEL_COLOURS = {"error": _RED, "warning": _ORANGE}
@@ -73,6 +79,23 @@ def file_info(path: Path) -> FileInfo:
     except OSError as exc:
         problems.append(f"free space unknown: {exc.strerror or exc}")
     return FileInfo(path, size, free, "; ".join(problems))
+
+
+def steady_range(current: tuple[float, float], lo: float, hi: float) -> tuple[float, float] | None:
+    """A new axis range for data spanning ``lo``-``hi``, or None to keep ``current``.
+
+    pyqtgraph's auto-range changes the range (and so regenerates the axes and paints twice) on every
+    new sample; this keeps it while the data stay inside and fill at least ``RANGE_MIN_FILL`` of it,
+    and otherwise sets the data's span plus ``RANGE_MARGIN`` on each side."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return None
+    span = hi - lo
+    c_lo, c_hi = current
+    c_span = c_hi - c_lo
+    if c_lo <= lo and hi <= c_hi and span >= RANGE_MIN_FILL * c_span:
+        return None
+    pad = RANGE_MARGIN * span if span > 0 else max(abs(hi) * 0.05, 1e-12)
+    return lo - pad, hi + pad
 
 
 def format_bytes(n: int | None) -> str:
@@ -157,6 +180,15 @@ class LiveView(QWidget):
         self.isum_plot.showGrid(x=True, y=True, alpha=0.3)
         self.isum_curve = pg.PlotCurveItem(pen=pg.mkPen(_RED, width=1))
         self.isum_plot.addItem(self.isum_curve)
+        for plot in (self.plot.force_plot, self.plot.delta_plot, self.plot.phase_plot,
+                     self.profile_plot, self.isum_plot):
+            if plot is not None:
+                for side in ("left", "bottom"):
+                    # grid lines at the major ticks only: every tick level's grid costs most of a
+                    # repaint (measured: 3x the paint time), and the redraw must stay >= 30/s
+                    plot.getAxis(side).setStyle(maxTickLevel=0)
+                plot.enableAutoRange(enable=False)  # ranges set by _fit_ranges, steadily
+                plot.setMouseEnabled(x=False, y=False)
         layout = cam.ci.layout
         layout.setRowStretchFactor(0, 4)
         layout.setRowStretchFactor(2, 2)
@@ -278,6 +310,8 @@ class LiveView(QWidget):
         """Redraw what received data since the last redraw; True if anything was redrawn."""
         t0 = time.perf_counter()
         drew = self.plot.redraw()
+        if drew:
+            self._fit_time_plots()
         if self._image_dirty and self._frame is not None:
             self._show_frame(self._frame)
             self._image_dirty = False
@@ -298,12 +332,35 @@ class LiveView(QWidget):
             self.rate_label.setText(f"{self.fps:.0f} redraws/s, last {1e3 * self.last_redraw_s:.1f} ms")
         return drew
 
+    def _fit_time_plots(self) -> None:
+        p = self.plot
+        x, ft = p.ft_curve.getData()
+        if x is None or len(x) == 0:
+            return
+        t_end = float(x[-1])
+        (x_lo, x_hi), _ = p.force_plot.viewRange()
+        if t_end > x_hi or t_end < x_lo:  # scroll by a tenth of the window at a time
+            p.force_plot.setXRange(max(t_end - self.window_s, float(x[0])),
+                                   t_end + RANGE_MARGIN * self.window_s, padding=0.0)
+        _fit_y(p.force_plot, ft, p.fn_curve.getData()[1])
+        _fit_y(p.delta_plot, p.delta_curve.getData()[1])
+        if p.phase_plot is not None and p.phase_curve is not None:
+            dx, dy = p.phase_curve.getData()
+            if dx is not None and len(dx):
+                (c_lo, c_hi), _ = p.phase_plot.viewRange()
+                new = steady_range((c_lo, c_hi), *_finite_bounds(dx))
+                if new is not None:
+                    p.phase_plot.setXRange(*new, padding=0.0)
+                _fit_y(p.phase_plot, dy)
+
     def _show_frame(self, f: LiveFrame) -> None:
         self.image_item.setImage(f.image, autoLevels=False, levels=(0, 255))
         profile = x_profile(f.image)
         n = profile.shape[0]
         x = (np.arange(n) + 0.5) / n
         self.profile_curve.setData(x, profile)
+        if n:
+            _fit_y(self.profile_plot, np.zeros(1), profile)
         h, w = f.image.shape[:2]
         rel = f.t_s - self._t_origin if self._t_origin == self._t_origin else f.t_s
         self.image_label.setText(f"camera at rig time {rel:.1f} s ({w * f.factor} x {h * f.factor} px "
@@ -316,7 +373,13 @@ class LiveView(QWidget):
         origin = self._t_origin if self._t_origin == self._t_origin else float(t[0])
         t = t - origin
         keep = int(np.searchsorted(t, t[-1] - self.window_s))
-        self.isum_curve.setData(*peak_decimate(t[keep:], h.view("isum")[keep:], MAX_POINTS))
+        ti, isum = peak_decimate(t[keep:], h.view("isum")[keep:], MAX_POINTS)
+        self.isum_curve.setData(ti, isum)
+        (x_lo, x_hi), _ = self.isum_plot.viewRange()
+        if ti[-1] > x_hi or ti[-1] < x_lo:
+            self.isum_plot.setXRange(max(ti[-1] - self.window_s, float(ti[0])),
+                                     ti[-1] + RANGE_MARGIN * self.window_s, padding=0.0)
+        _fit_y(self.isum_plot, isum)
 
     # ------------------------------------------------------------------ run file (worker thread)
     def _request_file_info(self) -> None:
@@ -348,3 +411,19 @@ class LiveView(QWidget):
         self._timer.stop()
         self._file_timer.stop()
         self._pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _finite_bounds(*arrays: np.ndarray | None) -> tuple[float, float]:
+    """Smallest and largest finite value of the arrays (NaN, NaN if there is none)."""
+    values = [a[np.isfinite(a)] for a in arrays if a is not None and len(a)]
+    values = [v for v in values if v.size]
+    if not values:
+        return math.nan, math.nan
+    return min(float(v.min()) for v in values), max(float(v.max()) for v in values)
+
+
+def _fit_y(plot: pg.PlotItem, *arrays: np.ndarray | None) -> None:
+    _, current = plot.viewRange()
+    new = steady_range((float(current[0]), float(current[1])), *_finite_bounds(*arrays))
+    if new is not None:
+        plot.setYRange(*new, padding=0.0)
