@@ -98,7 +98,7 @@ def test_a_run_being_recorded_is_followed_as_it_grows(panel, qtbot, tmp_path):
     assert "completed" in panel.status_label.text()
 
 
-def test_export_writes_the_runs_samples_and_refuses_to_overwrite(panel, qtbot, finished_run,
+def test_export_writes_the_runs_samples_refuses_to_overwrite_and_the_csv_opens(panel, qtbot, finished_run,
                                                                tmp_path):
     assert panel.open(finished_run)
     qtbot.waitUntil(lambda: panel._reader is None, timeout=TIMEOUT_MS)
@@ -114,6 +114,14 @@ def test_export_writes_the_runs_samples_and_refuses_to_overwrite(panel, qtbot, f
     assert not panel.export_csv(csv)  # exists: refused, said, the file left alone
     assert "already exists" in panel.log.toPlainText()
     assert csv.stat().st_size == size
+    # the CSV opens in the tab too (the loader of rigctl analyse), its provenance shown
+    assert panel.open(csv)
+    assert panel.kind == "csv" and panel.status == "completed"
+    assert float(np.max(panel.ft_curve.getData()[1])) == float(np.max(d["ft_N"]))
+    shown = {panel.info_table.item(i, 0).text(): panel.info_table.item(i, 1).text()
+             for i in range(panel.info_table.rowCount())}
+    assert shown["protocol"] == "tlre" and shown["# run.status"] == "completed"
+    assert not panel.export_button.isEnabled() and not panel.again_button.isEnabled()
 
 
 def test_run_again_fills_the_protocols_tab_with_the_runs_protocol_and_parameters(qtbot,
