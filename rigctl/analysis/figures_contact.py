@@ -202,13 +202,13 @@ def psd_figure(psd: SurfacePsd, folder: Path, name: str = "surface_psd.png",
     ax = axs[-1]
     ok = np.isfinite(psd.c_m4) & (psd.c_m4 > 0)
     ax.loglog(psd.f_per_m[ok] * 1e-6, psd.c_m4[ok], "o-", ms=3, color="#1f77b4",
-              label=f"Sq from the PSD {psd.sq_m * 1e6:.3f} um (heights {psd.sq_direct_m * 1e6:.3f}"
-                    f" um); anisotropy {psd.anisotropy:.2f}")
-    ax.axvspan(*band_per_um, color="#ddd", alpha=0.6, label="paper's stable band 0.02-0.18 um^-1")
+              label=f"Sq from the PSD {psd.sq_m * 1e6:.3f} um\n(of the heights "
+                    f"{psd.sq_direct_m * 1e6:.3f} um)\nanisotropy {psd.anisotropy:.2f}")
+    ax.axvspan(*band_per_um, color="#ddd", alpha=0.6, label="paper's stable band\n0.02-0.18 um^-1")
     ax.set_xlabel("spatial frequency [1/um]")
     ax.set_ylabel("C(f) [m^4]")
     ax.set_title("Isotropic power spectral density (Hann window)")
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="lower left")
     if height_m is not None:
         ax0 = axs[0]
         ext = (0.0, height_m.shape[1] * pixel_m * 1e3, 0.0, height_m.shape[0] * pixel_m * 1e3)
