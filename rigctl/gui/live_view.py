@@ -198,6 +198,7 @@ class LiveView(QWidget):
         self.events.setReadOnly(True)
         self.events.setMaximumBlockCount(EVENT_LINES)
         self.events.setPlaceholderText("events and warnings of the run appear here")
+        self.events.setMinimumHeight(120)  # about eight lines
         mono = QFont("monospace")
         mono.setStyleHint(QFont.StyleHint.Monospace)
         mono.setPointSize(8)
@@ -224,7 +225,7 @@ class LiveView(QWidget):
         split = QSplitter(Qt.Orientation.Vertical)
         split.addWidget(top)
         split.addWidget(bottom)
-        split.setStretchFactor(0, 4)
+        split.setStretchFactor(0, 3)
         split.setStretchFactor(1, 1)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(4, 4, 4, 4)
@@ -276,9 +277,13 @@ class LiveView(QWidget):
         """One line in the events pane: time, level, text (warnings orange, errors red)."""
         stamp = time.strftime("%H:%M:%S")
         colour = _LEVEL_COLOURS.get(level)
-        safe = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+        safe = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace("\n", "; ")
         line = f"{stamp}  {level:<7} {safe}"
+        bar = self.events.verticalScrollBar()
+        following = bar.value() >= bar.maximum() - 2  # an operator reading older lines keeps them
         self.events.appendHtml(f'<span style="color:{colour}">{line}</span>' if colour else line)
+        if following:
+            bar.setValue(bar.maximum())
 
     def show_devices(self, snap: Any) -> None:
         """A device snapshot (:class:`~rigctl.runservice.devices.RigSnapshot`): stage alarms, faults,
