@@ -80,7 +80,7 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
     _, fn = view.plot.fn_curve.getData()
     assert np.nanmax(fn) > 250.0  # the 300 N pre-load
     dx, dy = view.plot.phase_curve.getData()
-    assert len(dx) > 100 and np.nanmax(dx) > 10e-6  # delta grew while Ft rose
+    assert len(dx) > 100 and np.nanmax(dx) > 10e-6 and np.nanmax(dy) > 10.0  # delta grew, Ft rose
     # camera: an image, its P(x) (sums to 1 over the columns) and Isum values of every frame
     image = view.image_item.image
     assert image is not None and image.ndim == 2 and image.shape[1] <= 320

@@ -8,7 +8,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 from matplotlib.image import imread
 
@@ -18,7 +17,7 @@ from rigctl.gui.screenshot import tab_names
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def dark_tiles(png: Path, tile: int = 24) -> int:
+def dark_tiles(png: Path, tile: int = 16) -> int:
     """Tiles of ``tile`` x ``tile`` pixels that are all near black: the camera image (a dark field
     with bright contact spots) has many; text, tables and white plots have none."""
     rgb = imread(str(png))[..., :3]
@@ -38,7 +37,7 @@ def test_cli_writes_a_png_of_the_live_tab(tmp_path):
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rgb = imread(str(out))
     assert rgb.shape[:2] == (900, 1400)
-    assert dark_tiles(out) > 50  # the camera image is in the picture
+    assert dark_tiles(out) > 30  # the camera image is in the picture
     assert not list(tmp_path.glob(".live.png.*"))  # no temporary file left
 
 
