@@ -79,6 +79,7 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
     assert x is not None and len(x) > 100 and np.nanmax(y) > 10.0  # Ft rose while sliding
     _, fn = view.plot.fn_curve.getData()
     assert np.nanmax(fn) > 250.0  # the 300 N pre-load
+    assert view.plot.phase_curve is not None
     dx, dy = view.plot.phase_curve.getData()
     assert len(dx) > 100 and np.nanmax(dx) > 10e-6 and np.nanmax(dy) > 10.0  # delta grew, Ft rose
     # camera: an image, its P(x) (sums to 1 over the columns) and Isum values of every frame
