@@ -4,9 +4,9 @@
   LivePlot`: a bounded 60 s history, min/max decimation), fed the same 1024 Hz blocks the run panel
   drains from the run service; nothing is re-read from the run file.
 * **Camera**: the newest downsampled contact image (a few a second, :mod:`rigctl.runservice.frames`),
-  its profile P(x) along the sliding direction (Han et al. 2022 Eqs. 2-3, x normalised over the image
-  width, 0 = back end) and Isum(t) (Eq. 1, one value per camera frame, full resolution) over the last
-  60 s of rig time.
+  its P(x) along the sliding direction over the contact region (Han et al. 2022 Sec. 3.2, as the run
+  analysis reads it: :mod:`rigctl.gui.live_contact`; 0 = back end) and Isum(t) (Eq. 1, one value per
+  camera frame, full resolution) over the last 60 s of rig time.
 * **Events**: the run's events and warnings as the run service and the run panel report them (start,
   pause, resume, abort, e-stop, outcome, probe over range, dropped data, device errors) and stage
   alarms and the e-stop seen in the device snapshots, each with the wall-clock time.
@@ -37,8 +37,9 @@ from PySide6.QtGui import QFont
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QPlainTextEdit, QSplitter, QVBoxLayout, QWidget
 
 from rigctl.gui.history import LiveHistory, peak_decimate
+from rigctl.gui.live_contact import LiveProfile
 from rigctl.gui.live_plot import MAX_POINTS, WINDOW_S, LivePlot
-from rigctl.runservice.frames import LiveFrame, x_profile
+from rigctl.runservice.frames import LiveFrame
 
 REDRAW_INTERVAL_MS = 30
 """At most about 33 redraws a second (a 33 ms timer gives slightly under 30 a second)."""
@@ -132,6 +133,8 @@ class LiveView(QWidget):
         self._fps_count = 0
         self._fps_t0 = time.monotonic()
         self._frame: LiveFrame | None = None
+        self.contact = LiveProfile()
+        """P(x) over the contact region of the recent images."""
         self._image_dirty = False
         self._isum_dirty = False
         self._t_origin = float("nan")
@@ -167,8 +170,8 @@ class LiveView(QWidget):
         self.image_label = pg.LabelItem("camera: no frame yet", size="8pt", color=_GREY)
         cam.addItem(self.image_label, row=1, col=0)
         self.profile_plot = cam.addPlot(row=2, col=0)
-        self.profile_plot.setLabel("left", "P(x)")
-        self.profile_plot.setLabel("bottom", "x (0 = back end, 1 = front end)")
+        self.profile_plot.setLabel("left", "P(x) (mean 1)")
+        self.profile_plot.setLabel("bottom", "x in the contact (0 = back end, 1 = front end)")
         self.profile_plot.showGrid(x=True, y=True, alpha=0.3)
         self.profile_plot.setXRange(0.0, 1.0, padding=0.0)
         self.profile_curve = pg.PlotCurveItem(pen=pg.mkPen(_BLUE, width=1))
@@ -241,6 +244,7 @@ class LiveView(QWidget):
         self.frames_received = 0
         self.image_item.clear()
         self.profile_curve.setData([], [])
+        self.contact.clear()
         self.isum_curve.setData([], [])
         self.image_label.setText("camera: no frame yet")
         self._image_dirty = self._isum_dirty = False
@@ -360,16 +364,19 @@ class LiveView(QWidget):
 
     def _show_frame(self, f: LiveFrame) -> None:
         self.image_item.setImage(f.image, autoLevels=False, levels=(0, 255))
-        profile = x_profile(f.image)
-        n = profile.shape[0]
-        x = (np.arange(n) + 0.5) / n
-        self.profile_curve.setData(x, profile)
-        if n:
+        profile = self.contact.add(f.image)
+        if profile is None:
+            self.profile_curve.setData([], [])
+        else:
+            self.profile_curve.setData(self.contact.x_centres, profile)
             _fit_y(self.profile_plot, np.zeros(1), profile)
         h, w = f.image.shape[:2]
         rel = f.t_s - self._t_origin if self._t_origin == self._t_origin else f.t_s
+        region = self.contact.region
+        where = (f"contact in columns {region.col0 * f.factor}-{region.col1 * f.factor} px"
+                 if region is not None and profile is not None else "no contact visible")
         self.image_label.setText(f"camera at rig time {rel:.1f} s ({w * f.factor} x {h * f.factor} px "
-                                 f"shown at 1/{f.factor})")
+                                 f"shown at 1/{f.factor}); {where}")
         self.images_shown += 1
 
     def _show_isum(self) -> None:

@@ -53,20 +53,6 @@ def intensity_sum(image: NDArray[Any]) -> float:
     return float(np.sum(image, dtype=np.float64))
 
 
-def x_profile(image: NDArray[Any]) -> NDArray[np.float64]:
-    """P(x) = I(x) / Isum with I(x) = sum over y of I(x, y): the equivalent stress distribution.
-
-    Han et al. 2022, Sec. 3.2, Eqs. (2)-(3): intensity summed along y (image rows), normalised by the
-    total so that the values sum to 1; index 0 is the back end of the contact. All zeros for a black
-    image (no contact seen).
-    """
-    column_sums = np.sum(image, axis=0, dtype=np.float64)
-    total = float(column_sums.sum())
-    if total <= 0:
-        return np.zeros_like(column_sums)
-    return np.divide(column_sums, total)
-
-
 def downsample(image: NDArray[Any], max_width_px: int = LIVE_FRAME_MAX_WIDTH_PX
                ) -> tuple[NDArray[np.uint8], int]:
     """Block-average ``image`` by the smallest integer factor that brings its width to at most

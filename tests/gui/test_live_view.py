@@ -18,12 +18,13 @@ import pytest
 from PySide6.QtCore import Qt
 
 from rigctl.config.loader import default_config
+from rigctl.gui.live_contact import LiveProfile
 from rigctl.gui.live_view import LiveView, file_info, format_bytes
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
 from rigctl.rigs import open_rig
 from rigctl.runservice.client import ServiceClient, spawn_service
 from rigctl.runservice.events import WarningForwarder, drop_events
-from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum, x_profile
+from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum
 from rigctl.runservice.server import service_alive
 from rigctl.runservice.wire import Address, JobSpec
 from rigctl.storage.reader import RunReader
@@ -66,9 +67,19 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
     view, panel = window.live_view, window.panel
     assert window.tabs.tabText(window.tabs.currentIndex()) == "Live"
     panel.start_button.click()
-    # during the run: forces plotted and camera images shown while it records
-    qtbot.waitUntil(lambda: view.images_shown >= 2 and view.plot.samples > 5000, timeout=TIMEOUT_MS)
+    # during the run: forces plotted and camera images shown while it records, P(x) of the contact
+    # (a density over the contact region: mean 1, the analysis' 100 bins of x)
+    def profile_shown() -> bool:
+        px, _ = view.profile_curve.getData()
+        return px is not None and len(px) == 100
+    qtbot.waitUntil(lambda: view.images_shown >= 2 and view.plot.samples > 5000 and profile_shown(),
+                    timeout=TIMEOUT_MS)
     assert panel.busy
+    px, py = view.profile_curve.getData()
+    assert abs(float(np.mean(py)) - 1.0) < 1e-9 and px[0] > 0 and px[-1] < 1
+    region = view.contact.region
+    assert region is not None and 0 < region.col0 < region.col1 < view.image_item.image.shape[1]
+    assert "contact in columns" in view.image_label.text
     qtbot.waitUntil(lambda: "size" in view.file_label.text(), timeout=5000)
     assert str(out) in view.file_label.text() and "free on its disk" in view.file_label.text()
     qtbot.waitUntil(lambda: panel.state == "idle", timeout=TIMEOUT_MS)
@@ -82,12 +93,9 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
     assert view.plot.phase_curve is not None
     dx, dy = view.plot.phase_curve.getData()
     assert len(dx) > 100 and np.nanmax(dx) > 10e-6 and np.nanmax(dy) > 10.0  # delta grew, Ft rose
-    # camera: an image, its P(x) (sums to 1 over the columns) and Isum values of every frame
+    # camera: an image and Isum values of every frame
     image = view.image_item.image
     assert image is not None and image.ndim == 2 and image.shape[1] <= 320
-    px, py = view.profile_curve.getData()
-    assert len(px) == image.shape[1] and abs(float(np.sum(py)) - 1.0) < 1e-9
-    assert px[0] > 0 and px[-1] < 1
     it, isum = view.isum_curve.getData()
     assert len(it) >= view.frames_received >= 2 and np.all(np.asarray(isum) > 0)
     # events: start and outcome, each with its level; the file label: path, size, free space
@@ -142,14 +150,35 @@ def test_history_stays_bounded_when_fed_an_hour(qtbot):
 
 
 # ---------------------------------------------------------------------- the pieces
-def test_profile_and_isum_follow_the_papers_definitions():
+def test_isum_is_the_sum_of_every_pixel():
     image = np.zeros((4, 5), np.uint8)
-    image[:, 0] = 10  # back end bright
+    image[:, 0] = 10
     image[1, 3] = 30
-    assert intensity_sum(image) == 4 * 10 + 30  # Eq. 1: every pixel
-    p = x_profile(image)
-    np.testing.assert_allclose(p, [40 / 70, 0, 0, 30 / 70, 0])  # Eqs. 2-3
-    assert not np.any(x_profile(np.zeros((3, 3), np.uint8)))  # black: no contact, no NaN
+    assert intensity_sum(image) == 4 * 10 + 30  # Eq. 1
+    assert intensity_sum(np.full((480, 640), 255, np.uint8)) == 480 * 640 * 255  # no uint8 overflow
+
+
+def test_live_profile_is_the_analysis_p_over_the_contact_region():
+    rng = np.random.default_rng(1)
+    live = LiveProfile(n_bins=10)
+
+    def frame(contact: bool) -> np.ndarray:
+        """A camera frame as the simulated camera makes one: dark level 6, read noise, rounded."""
+        img: np.ndarray = 6.0 + rng.normal(0, 1.2, (60, 100))
+        if contact:
+            img[:, 30:70] += np.linspace(10, 100, 40)[None, :]  # brighter towards the front end
+        return np.rint(np.clip(img, 0, 255)).astype(np.uint8)
+
+    for _ in range(3):  # a dark field: no contact, no P
+        assert live.add(frame(False)) is None
+    assert live.region is None and "no contact" in live.problem
+    live.clear()
+    for _ in range(8):
+        p = live.add(frame(True))
+    assert live.region is not None and abs(live.region.col0 - 30) <= 1 and abs(live.region.col1 - 70) <= 1
+    assert p is not None and p.shape == (10,) and abs(float(p.mean()) - 1.0) < 1e-9
+    assert np.all(np.diff(p) > 0)  # rises from the back end to the front end
+    np.testing.assert_allclose(live.x_centres, (np.arange(10) + 0.5) / 10)
 
 
 def test_downsample_averages_full_blocks():
