@@ -373,10 +373,10 @@ class LiveView(QWidget):
         h, w = f.image.shape[:2]
         rel = f.t_s - self._t_origin if self._t_origin == self._t_origin else f.t_s
         region = self.contact.region
-        where = (f"contact in columns {region.col0 * f.factor}-{region.col1 * f.factor} px"
+        where = (f"contact in columns {region.col0 * f.factor}-{region.col1 * f.factor}"
                  if region is not None and profile is not None else "no contact visible")
-        self.image_label.setText(f"camera at rig time {rel:.1f} s ({w * f.factor} x {h * f.factor} px "
-                                 f"shown at 1/{f.factor}); {where}")
+        self.image_label.setText(f"camera at rig time {rel:.1f} s ({w * f.factor} x {h * f.factor} px, "
+                                 f"shown at 1/{f.factor})<br>{where}")
         self.images_shown += 1
 
     def _show_isum(self) -> None:
