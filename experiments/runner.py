@@ -252,6 +252,12 @@ class Runner:
             status, error = RunStatus.FAILED, f"{type(exc).__name__}: {exc}"
             if isinstance(exc, KeyboardInterrupt):
                 status, error = RunStatus.ABORTED, "interrupted (Ctrl-C)"
+            elif self.controls.aborted:
+                # the abort came first and the step then failed on its consequence (an e-stop's
+                # stage alarm seen before the abort flag): the run was aborted, the failure is
+                # what the abort caused
+                status = RunStatus.ABORTED
+                error = f"{self.controls.abort_reason or 'aborted'} (then {error})"
         finally:
             if status != RunStatus.COMPLETED:
                 problems = safe_state(ctx, error or status)

@@ -256,3 +256,37 @@ def test_a_reading_frozen_mid_load_is_not_reported_as_a_load_still_on(tmp_path):
         assert "still on" not in outcome.error
         assert "could not be confirmed" in outcome.error
         assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # released in fact
+
+
+def test_a_failure_caused_by_an_abort_ends_the_run_aborted(rig, tmp_path):
+    """An e-stop stops the stages and aborts the run; the stage alarm it causes can reach the step
+    (as a device error of the acquisition) before the abort flag does. The run was still aborted
+    by the operator: its status says so and its error keeps what failed."""
+    out = tmp_path / "estopped.h5"
+    controls = Controls()
+    raised: list[str] = []
+
+    def with_alarm_after_abort(acq):
+        rig.pacer.follow(lambda: acq.t_s)
+        check = acq.check
+
+        def check_then_alarm() -> None:
+            check()
+            if controls.aborted and not raised:
+                raised.append("alarm")
+                raise RuntimeError("tangential stage alarm 5 (emergency stop)")
+        acq.check = check_then_alarm
+
+    runner = Runner(get_protocol("tlre"), SHORT_TLRE, rig.devices, rig.limits, out=out,
+                    daq_layout=adapters.daq_layout(rig.config), camera_layout=None,
+                    on_acquisition=with_alarm_after_abort, controls=controls)
+    th, result = start_and_wait_for_slide(runner, rig.devices.tangential_stage, 20e-6)
+    controls.abort("emergency stop by the operator")
+    th.join(timeout=60)
+    outcome = result[0]
+    assert raised, "the injected alarm was never raised"
+    assert outcome.status == "aborted", outcome.error
+    assert "emergency stop by the operator" in outcome.error and "alarm 5" in outcome.error
+    assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)
+    status, error, events = status_of(out)
+    assert status == "aborted" and "alarm 5" in error and "safe_state" in events
