@@ -8,10 +8,7 @@ the drivers' latched emergency stop stops both stages, motion is refused until r
 from __future__ import annotations
 
 import math
-import os
-import queue
 import time
-from pathlib import Path
 
 import pytest
 from PySide6.QtCore import Qt
@@ -20,10 +17,9 @@ from drivers.errors import EmergencyStopActive
 from rigctl.config.loader import default_config
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
 from rigctl.rigs import open_rig
-from rigctl.runservice.client import ServiceClient, spawn_service
-from rigctl.runservice.server import service_alive
-from rigctl.runservice.wire import Address, JobSpec
+from rigctl.runservice.wire import JobSpec
 from rigctl.storage.reader import RunReader
+from tests.gui.service_session import service_session
 
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}
@@ -81,15 +77,8 @@ def test_estop_when_idle_says_nothing_is_open(qtbot):
 
 @pytest.mark.slow
 def test_estop_through_the_run_service_aborts_the_run(tmp_path):
-    address = Address(Path(f"/tmp/rigctl-estop-{os.getpid()}"))
-    proc = spawn_service(address, "sim", "10", extra=["--idle-exit-s", "1"])
-    try:
-        deadline = time.monotonic() + 90
-        while not service_alive(address):
-            assert time.monotonic() < deadline and proc.poll() is None, "service did not start"
-            time.sleep(0.1)
-        inbox: queue.Queue = queue.Queue()
-        client = ServiceClient.connect(address, lambda k, p: inbox.put((k, p)))
+    with service_session("estop") as session:
+        client, inbox, proc = session.client, session.inbox, session.proc
         out = tmp_path / "estop_service.h5"
         client.send("start", JobSpec("tlre", SHORT_TLRE, str(out), camera=False, speed_text="10"))
         deadline = time.monotonic() + 90
@@ -130,10 +119,3 @@ def test_estop_through_the_run_service_aborts_the_run(tmp_path):
         with RunReader(out) as r:
             assert r.status == "aborted"
             assert any(e.name == "safe_state" for e in r.events())
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            proc.wait(30)
-        import shutil
-
-        shutil.rmtree(address.directory, ignore_errors=True)

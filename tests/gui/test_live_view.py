@@ -6,9 +6,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-import queue
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,12 +19,11 @@ from rigctl.gui.live_contact import LiveProfile
 from rigctl.gui.live_view import LiveView, file_info, format_bytes
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
 from rigctl.rigs import open_rig
-from rigctl.runservice.client import ServiceClient, spawn_service
 from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum
-from rigctl.runservice.server import service_alive
-from rigctl.runservice.wire import Address, JobSpec
+from rigctl.runservice.wire import JobSpec
 from rigctl.storage.reader import RunReader
+from tests.gui.service_session import service_session
 
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}
@@ -248,15 +244,8 @@ def test_file_info_of_a_missing_file_says_so(tmp_path):
 
 @pytest.mark.slow
 def test_run_service_forwards_camera_images_and_pause_resume_events(tmp_path):
-    address = Address(Path(f"/tmp/rigctl-live-{os.getpid()}"))
-    proc = spawn_service(address, "sim", "10", extra=["--idle-exit-s", "1"])
-    try:
-        deadline = time.monotonic() + 90
-        while not service_alive(address):
-            assert time.monotonic() < deadline and proc.poll() is None, "service did not start"
-            time.sleep(0.1)
-        inbox: queue.Queue = queue.Queue()
-        client = ServiceClient.connect(address, lambda k, p: inbox.put((k, p)))
+    with service_session("live") as session:
+        client, inbox, proc = session.client, session.inbox, session.proc
         out = tmp_path / "service_live.h5"
         client.send("start", JobSpec("tlre", SHORT_TLRE, str(out), camera=True, speed_text="10"))
         frames: list[LiveFrame] = []
@@ -290,8 +279,3 @@ def test_run_service_forwards_camera_images_and_pause_resume_events(tmp_path):
         client.send("shutdown")
         client.close()
         proc.wait(60)
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            proc.wait(30)
-        shutil.rmtree(address.directory, ignore_errors=True)
