@@ -7,8 +7,8 @@ samples per redraw, and after each redraw paints the window synchronously. It re
 ``sys.getrefcount`` of None, True and False, the redraw and paint times and the resident memory,
 and prints them. A binding that drops references on Qt calls makes the process abort here
 (``none_dealloc``) or shows as a falling count; ``tests/gui/test_refcount_soak.py`` runs it in a child
-process and fails on either. ``benchmarks/bench_gui.py`` uses :func:`run_soak` for the live-view
-figures.
+process and fails on either. (The Live tab's frame rate and memory after an hour of data are
+measured by ``benchmarks/bench_live_view.py``.)
 """
 
 from __future__ import annotations
