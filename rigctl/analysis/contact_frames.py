@@ -82,6 +82,7 @@ def iter_frame_chunks(
     for a in range(start, stop, step):
         frames, t_s, _ = reader.frames(a, min(a + step, stop))
         yield FrameChunk(a, frames, t_s)
+        del frames, t_s  # the chunk is the caller's alone: gone when the caller drops it
 
 
 def read_frame(path: str | Path, index: int) -> tuple[NDArray[np.uint8], float]:

@@ -71,9 +71,10 @@ def contact_sections(ca: ContactAnalysis | None, absent: str, mech: Mechanics, f
     else:
         fit = " Fn does not vary enough without tangential load in this run for the Isum-Fn line."
     im1 = [f"pass {pc.pass_index + 1}: {_f(pc.im1)}" for pc in ca.passes]
+    top = float(np.nanmax(ci.isum)) if np.isfinite(ci.isum).any() else math.nan
     text = (f"{ci.n_frames} frames; contact region image columns {r.col0}-{r.col1 - 1} "
             f"(x = 0 at the {'left' if r.back_end_left else 'right'}), dark level "
-            f"{r.dark_level:.1f} grey levels; max Isum {_f(float(np.max(ci.isum)))}.{fit} "
+            f"{r.dark_level:.1f} grey levels; max Isum {_f(top)}.{fit} "
             f"Im(1): {', '.join(im1) or '-'}. Per-frame Isum, Ic, Fn, Ft and P(k): {series}.")
     table = {"header": ["pass", "stage", "cycle", "Ft of the 3 frames [N]",
                         "contact separation", "new contact", "area growth",

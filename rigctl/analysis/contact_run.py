@@ -125,7 +125,14 @@ class ContactAnalysis:
             "region": {"col0": r.col0, "col1": r.col1, "dark_level": r.dark_level,
                        "back_end_left": r.back_end_left},
             "profile_bins": ci.n_bins,
-            "isum_max": float(np.max(ci.isum)) if ci.n_frames else math.nan,
+            "isum_max": float(np.nanmax(ci.isum)) if np.isfinite(ci.isum).any() else math.nan,
+            "frame_quality": {
+                "blank_frames": 0 if ci.blank is None else int(np.count_nonzero(ci.blank)),
+                "nonfinite_frames": 0 if ci.nonfinite is None
+                else int(np.count_nonzero(ci.nonfinite)),
+                "saturated_frames": None if ci.saturated_px is None
+                else int(np.count_nonzero(ci.saturated_px)),
+            },
             "wsm": {"scales_px": list(self.wsm.scales_px), "weights": list(self.wsm.weights),
                     "edge_z": self.wsm.edge_z, "own_z": self.wsm.own_z,
                     "z": self.wsm.z, "min_spot_px": self.wsm.min_spot_px},
@@ -206,6 +213,7 @@ def analyse_contact(source: RunSource, mech: Mechanics, progress: Progress = SIL
         ci = stream_intensity(reader, reg, info.n_frames, max_bytes=max_bytes, progress=progress)
         ft = np.interp(ci.t_s, run.t_s, run.ft_N)
         fn = np.interp(ci.t_s, run.t_s, run.fn_N)
+        notes += ci.quality_notes()
         out = [_pass_contact(reader, ci, ft, rec, st, wsm)
                for rec, st in zip(mech.passes, mech.stiffness, strict=True)]
     for p in out:

@@ -133,12 +133,13 @@ def im_cycles(ci: ContactIntensity, stiffness: Sequence[CycleStiffness]) -> list
         if not (math.isfinite(a) and math.isfinite(b)) or ci.n_frames == 0:
             out.append(MeanIntensity(s.cycle, s.stage, math.nan, 0, (a, b)))
             continue
-        sel = (ci.t_s >= a) & (ci.t_s <= b)
+        ok = np.isfinite(ci.ic)  # frames without an image (ContactIntensity.quality_notes) out
+        sel = (ci.t_s >= a) & (ci.t_s <= b) & ok
         k = int(np.count_nonzero(sel))
         if k:
             im = float(np.mean(ci.ic[sel]))
-        elif ci.t_s[0] <= 0.5 * (a + b) <= ci.t_s[-1]:
-            im = float(np.interp(0.5 * (a + b), ci.t_s, ci.ic))
+        elif ok.any() and ci.t_s[ok][0] <= 0.5 * (a + b) <= ci.t_s[ok][-1]:
+            im = float(np.interp(0.5 * (a + b), ci.t_s[ok], ci.ic[ok]))
         else:
             im = math.nan
         out.append(MeanIntensity(s.cycle, s.stage, im, k, (a, b)))

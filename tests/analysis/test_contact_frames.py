@@ -85,7 +85,7 @@ def _peak_bytes(path: Path, max_bytes: int) -> int:
 
 def test_streaming_peak_memory_is_bounded_by_the_chunk_not_the_run(many: Path) -> None:
     total = 1200 * H * W  # 14.7 MB of pixels
-    kept = 1200 * (100 * 4 + 3 * 8)  # what the analysis keeps per frame (profile, t, Isum, Ic)
+    kept = 1200 * (100 * 4 + 3 * 8 + 6)  # kept per frame: profile, t, Isum, Ic, frame checks
     small = 8 * H * W
     big = 64 * H * W
     peak_small = _peak_bytes(many, small)
@@ -93,5 +93,6 @@ def test_streaming_peak_memory_is_bounded_by_the_chunk_not_the_run(many: Path) -
     # a chunk of pixels plus its column sums, the per-frame results and small change
     assert peak_small < kept + 6 * small + 256 * 1024, peak_small
     assert peak_small < total / 8
-    # memory follows the chunk size: 8x larger chunks cost clearly more
-    assert peak_big > peak_small + 1.5 * (big - small)
+    # memory follows the chunk size, one chunk alive at a time: 8x larger chunks cost one chunk's
+    # difference more (two chunks alive, the reader's and the caller's, would cost twice that)
+    assert peak_small + 0.8 * (big - small) < peak_big < peak_small + 1.5 * (big - small)
