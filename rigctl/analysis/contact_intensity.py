@@ -90,7 +90,8 @@ def dark_level_of(pixels: NDArray[np.generic]) -> tuple[float, float]:
     Bright contact spots on a dark field (Sec. 2.1): most pixels are dark field and the contact only
     adds a bright tail, so the dark level is the peak of the integer histogram of the grey levels,
     refined by the parabola through the logarithms of the counts at the peak and its two neighbours
-    (the three-point Gaussian peak interpolation; exact for Gaussian read noise). With values
+    (the three-point Gaussian peak interpolation; exact for Gaussian read noise; for noise of two
+    grey levels or more, the parabola fitted to the log counts within one RMS of the peak). With values
     rounded it lands on the noise's mean, with values truncated half a grey level lower, where the
     truncated values' mean is: a per-pixel offset that a median (an integer, on one side or the
     other of the mean) does not follow. The noise RMS comes from the same parabola's curvature
@@ -117,6 +118,14 @@ def dark_level_of(pixels: NDArray[np.generic]) -> tuple[float, float]:
         return float(lo + k), 0.5
     shift = 0.5 * (lm - lp) / curv
     sigma = math.sqrt(-1.0 / curv)
+    half = round(sigma)
+    if half >= 2:  # broad noise: the same parabola, least squares over +-sigma (less sampling noise)
+        x = np.arange(max(k - half, 0), min(k + half + 1, counts.size))
+        y = counts[x].astype(np.float64)
+        ok = y > 0
+        a2, a1, _ = np.polyfit(x[ok] - k, np.log(y[ok]), 2, w=np.sqrt(y[ok]))
+        if a2 < 0:
+            shift, sigma = -a1 / (2.0 * a2), math.sqrt(-1.0 / (2.0 * a2))
     return float(lo + k + shift), max(sigma, 0.5)
 
 
