@@ -33,6 +33,10 @@ class RigLimits:
     tangential: StageLimits
     normal: StageLimits
     max_force_N: float
+    contact_search_end_m: float = math.inf
+    """Furthest the contact search may go without reading a contact (the expected contact)."""
+    max_approach_m: float = math.inf
+    """Furthest the normal stage may press past where it first read a contact."""
 
 
 class Controls:
@@ -88,6 +92,9 @@ class RunContext:
         self.force_guard = force_guard
         self.z_retract_m: float | None = None
         """Normal-stage position before the first contact: where releasing the load goes back to."""
+        self.z_contact_m: float | None = None
+        """Normal-stage position where the load step first read a contact (the approach bound,
+        :attr:`RigLimits.max_approach_m`, counts from it); None until then and after a release."""
         self.x_start_m: float | None = None
         """Tangential-stage position when the protocol started: where returns go back to."""
         self.current_step = ""

@@ -107,6 +107,21 @@ class LoadNormal(Step):
 
     def _move(self, ctx: RunContext, z: float, velocity: float) -> float:
         stage = ctx.normal
+        limits = ctx.limits
+        if ctx.z_contact_m is not None and z > ctx.z_contact_m + limits.max_approach_m:
+            raise ProcedureError(
+                f"{self.describe()}: refused: the normal stage would press "
+                f"{(z - ctx.z_contact_m) * 1e6:.0f} um past where it first read a contact "
+                f"(z = {ctx.z_contact_m * 1e3:.4f} mm; max_approach_m = "
+                f"{limits.max_approach_m * 1e6:.0f} um) while Fn reads {ctx.fn_N(self.average_s):.1f} N: "
+                "the force reading may be blind, or the load path is softer than configured")
+        if ctx.z_contact_m is None and z > limits.contact_search_end_m:
+            raise ProcedureError(
+                f"{self.describe()}: no contact read up to z = {stage.position_m() * 1e3:.4f} mm, the "
+                f"end of the contact search (contact_search_end_m = "
+                f"{limits.contact_search_end_m * 1e3:.4f} mm) while Fn reads "
+                f"{ctx.fn_N(self.average_s):.2f} N: the force reading may be blind, or the specimen "
+                "is not where the configuration expects it")
         try:
             ctx.limits.normal.check_target(stage.name, z)
         except InvalidValueError as exc:
@@ -129,6 +144,8 @@ class LoadNormal(Step):
                 raise ProcedureError(f"{self.describe()}: no contact found")
             z += self.coarse_step_m
             fn = self._move(ctx, z, self.approach_velocity_m_s)
+        if ctx.z_contact_m is None:
+            ctx.z_contact_m = z
         slope: float | None = None
         best = (abs(fn - force_N), z)
         for _ in range(self.max_iterations):
@@ -183,4 +200,5 @@ class ReleaseNormal(Step):
         fn = ctx.fn_N(0.05)
         if fn > CONTACT_N:
             raise ProcedureError(f"{self.describe()}: Fn still {fn:.2f} N after retracting")
+        ctx.z_contact_m = None  # the next load step finds the contact anew
         ctx.acq.mark("released", f"Fn {fn:.2f} N")

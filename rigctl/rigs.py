@@ -164,7 +164,8 @@ class OpenRig:
 def rig_limits(config: RigConfig) -> RigLimits:
     """The limits the dry run checks a plan against: the same objects the stage drivers get."""
     n = config.normal_stage.limits
-    return RigLimits(tangential=config.tangential_stage.limits, normal=n, max_force_N=n.max_force_N)
+    return RigLimits(tangential=config.tangential_stage.limits, normal=n, max_force_N=n.max_force_N,
+                     contact_search_end_m=n.contact_search_end_m, max_approach_m=n.max_approach_m)
 
 
 def parse_speed(text: str) -> float:

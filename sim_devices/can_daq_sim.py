@@ -77,10 +77,15 @@ class DaqSignals:
         self._stuck: tuple[np.ndarray, np.ndarray] | None = None
 
     def counts(
-        self, t_s: np.ndarray, s: RigSamples, stuck: bool
+        self, t_s: np.ndarray, s: RigSamples, stuck: bool, blind: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(n, 3) force counts and (n, 3) analog counts at rig times ``t_s`` (within ``s``)."""
-        force = self.sensor.counts(interp(t_s, s, s.ft_N), interp(t_s, s, s.fn_N))
+        """(n, 3) force counts and (n, 3) analog counts at rig times ``t_s`` (within ``s``);
+        ``blind``: the force sensor sees no load (its noise about zero)."""
+        if blind:
+            zero = np.zeros(t_s.shape[0])
+            force = self.sensor.counts(zero, zero)
+        else:
+            force = self.sensor.counts(interp(t_s, s, s.ft_N), interp(t_s, s, s.fn_N))
         sp = self.spec
         volts = np.zeros((t_s.shape[0], 3))
         volts[:, 0] = self.rig.probes[0].analog_V(interp(t_s, s, s.d1_m), sp.probe_m_per_volt)
@@ -231,7 +236,8 @@ class CanDaqSim(SimService):
             if t.shape[0] == 0:
                 continue
             try:
-                force, analog = self.signals.counts(t, cursor.window(t), self.faults.stuck)
+                force, analog = self.signals.counts(t, cursor.window(t), self.faults.stuck,
+                                                   self.faults.blind)
             except SamplesLostError as lost:  # fell behind the rig's history: skip, the gap shows
                 with self._lock:
                     cursor.skip_lost(lost)

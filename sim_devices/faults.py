@@ -11,6 +11,9 @@ field              effect
 ``short_pct``      percentage of replies / frames / lines cut short
 ``drop_pct``       percentage of CAN data frames or camera frames lost
 ``stuck``          readings freeze at their value when the fault was set (sample clocks run on)
+``blind``          the force sensor reads no load: its noise about zero, whatever the contact
+                   carries (a broken bridge or cable; the sample clock and the analog channels
+                   run on)
 ``alarm_code``     a stage controller alarm to raise (consumed when the device latches it)
 =================  =========================================================================
 
@@ -43,6 +46,7 @@ class Faults:
     short_pct: float = 0.0
     drop_pct: float = 0.0
     stuck: bool = False
+    blind: bool = False
     alarm_code: int = 0
     seed: int = 0
     _rng: np.random.Generator = field(init=False, repr=False)

@@ -192,7 +192,7 @@ class InProcessDaq(Daq):
             self._dropped += cursor.skip_lost(lost)
             return self._empty()
         cursor.consume(t.shape[0])
-        force, analog = self.signals.counts(t, s, self.faults.stuck)
+        force, analog = self.signals.counts(t, s, self.faults.stuck, self.faults.blind)
         counter = n0 + np.arange(t.shape[0], dtype=np.int64)
         keep = np.ones(t.shape[0], dtype=bool)
         if self.faults.drop_pct > 0:

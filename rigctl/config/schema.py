@@ -114,6 +114,26 @@ class NormalLimits(StageLimits):
         gt=0.0,
         le=RATED_NORMAL_FORCE_N,
     )
+    contact_search_end_m: float = setting(
+        0.02005,
+        "Furthest position the contact search may reach without reading a contact: the expected "
+        "contact position plus its uncertainty, which must stay well below the load path's "
+        "deflection at the force limit. Past it the load step stops and fails (a blind force reading "
+        "must not push the stage into the specimen). Default: this rig's contact at 20.0 mm + 50 um "
+        "(247 N of approach).",
+        unit="m",
+        gt=0.0,
+        le=NORMAL_STROKE_M,
+    )
+    max_approach_m: float = setting(
+        115e-6,
+        "Furthest the normal stage may press past the position where it first read a contact: the "
+        "load path's deflection at max_force_N with a small margin; set the two together (this rig: "
+        "109 um at 800 N, 80 um at 500 N). A load step that would go further stops and fails, so a "
+        "blind force reading presses at most this plus one contact-search step past the contact.",
+        unit="m",
+        gt=0.0,
+    )
 
 
 @dataclass(frozen=True)

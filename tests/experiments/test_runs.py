@@ -290,3 +290,59 @@ def test_a_failure_caused_by_an_abort_ends_the_run_aborted(rig, tmp_path):
     assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)
     status, error, events = status_of(out)
     assert status == "aborted" and "alarm 5" in error and "safe_state" in events
+
+
+def _run_blind(config_text: str, out: Path, go_blind) -> tuple[object, float, float, bool, float]:
+    """A short TLRE with the force sensor going blind when ``go_blind(rig)`` says; returns the
+    outcome, the highest true normal force and normal-stage position seen, whether the stage's
+    over-load alarm was raised, and the true normal force at the end."""
+    from rigctl.config.loader import parse_config
+    from rigctl.rigs import rig_limits
+
+    config = parse_config(config_text)
+    with open_rig("sim", config, speed=math.inf) as rig:
+        runner = Runner(get_protocol("tlre"), SHORT_TLRE, rig.devices, rig_limits(config), out=out,
+                        daq_layout=adapters.daq_layout(rig.config), camera_layout=None,
+                        on_acquisition=lambda acq: rig.pacer.follow(lambda: acq.t_s))
+        result: list = []
+        th = threading.Thread(target=lambda: result.append(runner.run()))
+        th.start()
+        fn_max = z_max = 0.0
+        alarm = False
+        while th.is_alive():
+            if not rig.sim.faults["daq"].blind and go_blind(rig):
+                rig.sim.faults["daq"].blind = True
+            fn_max = max(fn_max, rig.sim.rig.state.fn_N)
+            z_max = max(z_max, rig.devices.normal_stage.position_m())
+            alarm = alarm or rig.devices.normal_stage.status().alarm_code == 3
+            time.sleep(0.001)
+        th.join(timeout=60)
+        fn_end = rig.sim.rig.state.fn_N
+    return result[0], fn_max, z_max, alarm, fn_end
+
+
+def test_a_blind_force_sensor_before_contact_stops_the_search_at_its_configured_end(tmp_path):
+    """The force channels read no load from the start (a broken bridge: live noise, so the
+    stale-reading watchdog does not trip): the contact search stops at contact_search_end_m instead
+    of driving the normal stage into the specimen up to the rig's over-load."""
+    outcome, fn_max, z_max, alarm, fn_end = _run_blind("", tmp_path / "blind.h5", lambda rig: True)
+    assert outcome.status == "failed"
+    assert "contact_search_end_m" in outcome.error and "blind" in outcome.error, outcome.error
+    assert z_max <= 0.02005 + 1e-9
+    assert not alarm and fn_max < 800.0, fn_max
+    assert fn_end == pytest.approx(0.0, abs=0.05)  # the safe state released the load
+
+
+def test_a_force_sensor_blind_under_load_stops_within_the_approach_bound(tmp_path):
+    """The sensor goes blind half-way up the load (true Fn 100 N): the load step keeps pressing on a
+    reading of ~0 N until the stage would pass max_approach_m beyond the first contact reading, and
+    stops there, below the rig's over-load (a 500 N force limit with its 80 um deflection)."""
+    text = "[normal_stage.limits]\nmax_force_N = 500\nmax_approach_m = 85e-6\n"
+    outcome, fn_max, _, alarm, fn_end = _run_blind(text, tmp_path / "blind_loaded.h5",
+                                           lambda rig: rig.sim.rig.state.fn_N > 100.0)
+    assert outcome.status == "failed"
+    assert "max_approach_m" in outcome.error and "blind" in outcome.error, outcome.error
+    assert not alarm and fn_max < 800.0, fn_max
+    assert fn_max > 100.0  # it did go blind under load
+    assert fn_end == pytest.approx(0.0, abs=0.05)  # the safe state released the load
+
