@@ -11,6 +11,7 @@ campaign (the other runs are still analysed), and a DataError for a single run.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -22,10 +23,20 @@ import numpy as np
 from rigctl.analysis.contact_run import ContactAnalysis, analyse_contact
 from rigctl.analysis.mechanics import Mechanics, analyse_mechanics
 from rigctl.analysis.progress import SILENT, Progress
+from rigctl.analysis.repeatability import (
+    Loading,
+    Repeated,
+    RepeatGroup,
+    RunRepeat,
+    image_repeatability,
+    loadings,
+    repeat_group,
+)
 from rigctl.analysis.source import RunSource, open_source
 from rigctl.analysis.sweep import SweepSummary, summarise, sweep_point
 from rigctl.data import DataError
 from rigctl.io.load import expand_paths
+from rigctl.workbench.drive_profile import fn_apart_N
 
 
 @dataclass
@@ -36,6 +47,18 @@ class RunAnalysis:
     contact: ContactAnalysis | None = None
     contact_absent: str = ""
     """Why there is no contact analysis ('' when there is one)."""
+    loadings: list[Loading] = field(default_factory=list)
+    """The run's loadings seen by the camera (repetitions of Sec. 2.2; [] without frames)."""
+
+    @property
+    def repeatability(self) -> list[Repeated]:
+        """Max Ft over the passes, max Isum and the Isum-Fn slope over the loadings (Sec. 2.2)."""
+        return list(self.mechanics.repeatability) + image_repeatability(self.loadings)
+
+    def repeat(self) -> RunRepeat:
+        """What this run contributes as one repetition across runs of its protocol."""
+        peaks = [float(np.nanmax(r.cycles.peak_N)) for r in self.mechanics.passes if r.cycles.n]
+        return RunRepeat.of(self.name, peaks, self.loadings)
 
     @property
     def name(self) -> str:
@@ -69,7 +92,8 @@ class RunAnalysis:
             },
             "notes": list(self.notes),
             "passes": self.mechanics.pass_dicts(),
-            "repeatability": [r.to_dict() for r in self.mechanics.repeatability],
+            "repeatability": [r.to_dict() for r in self.repeatability],
+            "loadings": [lo.to_dict() for lo in self.loadings],
             "contact": {"absent": self.contact_absent} if self.contact is None
             else self.contact.to_dict(),
         }
@@ -93,7 +117,12 @@ def analyse_run(path: str | Path, progress: Progress = SILENT) -> RunAnalysis:
             notes.append(absent)
         else:
             notes += contact.notes
-    return RunAnalysis(src, mech, notes, contact, absent)
+    reps: list[Loading] = []
+    if contact is not None:
+        ci, run = contact.intensity, src.run
+        reps = loadings(run.t_s, run.fn_N, fn_apart_N(run.fn_N), ci.t_s, contact.fn_frames_N,
+                        ci.isum, ci.ic)
+    return RunAnalysis(src, mech, notes, contact, absent, reps)
 
 
 @dataclass
@@ -101,13 +130,28 @@ class CampaignAnalysis:
     runs: list[RunAnalysis]
     sweep: SweepSummary | None
     notes: list[str] = field(default_factory=list)
+    repeat_groups: list[RepeatGroup] = field(default_factory=list)
+    """Runs of one protocol with the same parameters (two or more): repeatability across runs."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "runs": [r.to_dict() for r in self.runs],
             "sweep": None if self.sweep is None else self.sweep.to_dict(),
+            "repeatability": [g.to_dict() for g in self.repeat_groups],
             "notes": list(self.notes),
         }
+
+
+def repeat_groups(runs: Sequence[RunAnalysis]) -> list[RepeatGroup]:
+    """Group the runs by protocol and parameters (run files only: a CSV names no protocol)."""
+    groups: dict[str, list[RunAnalysis]] = {}
+    for ra in runs:
+        if ra.source.protocol:
+            key = json.dumps([ra.source.protocol, ra.source.parameters], sort_keys=True,
+                             default=str)
+            groups.setdefault(key, []).append(ra)
+    return [repeat_group(g[0].source.protocol, g[0].source.parameters, [r.repeat() for r in g])
+            for g in groups.values() if len(g) >= 2]
 
 
 def _sweep(runs: Sequence[RunAnalysis]) -> SweepSummary | None:
@@ -136,4 +180,4 @@ def analyse_campaign(paths: Sequence[str | Path], progress: Progress = SILENT) -
                     raise
                 notes.append(f"not analysed: {exc}")
             bar.update()
-    return CampaignAnalysis(runs, _sweep(runs), notes)
+    return CampaignAnalysis(runs, _sweep(runs), notes, repeat_groups(runs))

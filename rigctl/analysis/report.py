@@ -23,6 +23,7 @@ from rigctl.analysis.contact_report import contact_sections
 from rigctl.analysis.friction import Coefficient
 from rigctl.analysis.pipeline import CampaignAnalysis, RunAnalysis
 from rigctl.analysis.progress import SILENT, Progress
+from rigctl.analysis.repeatability import Repeated
 from rigctl.analysis.sweep import SweepSummary
 from rigctl.io.atomic import atomic_text_writer
 from rigctl.io.json_values import jsonable
@@ -52,6 +53,20 @@ def _pm(c: Coefficient) -> str:
 
 def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name) or "run"
+
+
+def _repeat_rows(qs: Sequence[Repeated]) -> list[dict[str, str]]:
+    """Table rows of repeated quantities; a fit's R^2 and largest deviation from its line."""
+    rows = []
+    for q in qs:
+        detail = ""
+        if "r2" in q.extra:
+            detail = "R^2 " + ", ".join(fmt(v, 4) for v in q.extra["r2"]) + "; off the line by " \
+                + ", ".join(fmt(100 * v, 3) for v in q.extra.get("fit_error", [])) + " % at most"
+        rows.append({"name": q.name + (f" [{q.unit}]" if q.unit else ""),
+                     "values": ", ".join(fmt(v) for v in q.values),
+                     "error": fmt(100 * q.relative_error, 3) + " %", "detail": detail})
+    return rows
 
 
 def _run_context(ra: RunAnalysis, folder: Path, prefix: str) -> dict[str, Any]:
@@ -87,9 +102,7 @@ def _run_context(ra: RunAnalysis, folder: Path, prefix: str) -> dict[str, Any]:
                          fmt(float(c["slip_m"]) * 1e6), fmt(c["fn_N"]),
                          fmt(st[j].k.k_N_per_m / 1e6)])
         cycle_tables.append({"index": rec.pas.index + 1, "rows": rows})
-    rep = [{"name": q.name + (f" [{q.unit}]" if q.unit else ""),
-            "values": ", ".join(fmt(v) for v in q.values),
-            "error": fmt(100 * q.relative_error, 3) + " %"} for q in m.repeatability]
+    rep = _repeat_rows(ra.repeatability)
     frames = "none" if s.frames is None else (
         f"{s.frames.n_frames} of {s.frames.width_px} x {s.frames.height_px} px at "
         f"{fmt(s.frames.measured_rate_hz)} Hz")
@@ -143,6 +156,10 @@ def write_report(result: CampaignAnalysis, out_dir: str | Path,
     html = _ENV.get_template("report.html.j2").render(
         title=title, created=datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
         campaign_notes=result.notes, sweep=sweep, runs=runs,
+        repeat_groups=[{"protocol": g.protocol + (f" {json.dumps(g.parameters)}" if g.parameters
+                                                  else ""),
+                        "runs": ", ".join(g.runs), "quantities": _repeat_rows(g.quantities)}
+                       for g in result.repeat_groups],
     )
     index = folder / "index.html"
     with atomic_text_writer(index) as fh:
