@@ -205,21 +205,26 @@ def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
 
 
 def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:
-    """The run file's size at most (frames uncompressed), refused (UsageError) when the output's
-    file system cannot hold it with the writer's reserve to spare."""
+    """The run file's expected size (frames at the size measured for contact images with the
+    configured compression, and at most if they do not compress), refused (UsageError) when the
+    output's file system cannot hold the expected size with the writer's reserve to spare."""
     import shutil
 
     from rigctl.storage import estimate_run_bytes
-    from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES
+    from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES, frame_bytes
 
     samples = estimate_run_bytes(duration_s, daq)
     total = estimate_run_bytes(duration_s, daq, camera)
     frames = total - samples
     folder = out.parent if out.parent.is_dir() else Path(".")
     free = shutil.disk_usage(folder).free
-    text = (f"run file: at most {total / 1e6:,.0f} MB ({samples / 1e6:,.0f} MB of samples"
-            + (f", {frames / 1e6:,.0f} MB of frames before compression" if camera else "")
-            + f"); {free / 1e9:,.1f} GB free in {folder}")
+    text = f"run file: about {total / 1e6:,.0f} MB ({samples / 1e6:,.0f} MB of samples"
+    if camera:
+        at_most = estimate_run_bytes(duration_s, daq, camera, at_most=True)
+        text += (f", {frames / 1e6:,.0f} MB of frames: {frame_bytes(camera) / 1e3:.0f} kB each "
+                 f"with {camera.compression}; up to {at_most / 1e6:,.0f} MB if the images do "
+                 "not compress")
+    text += f"); {free / 1e9:,.1f} GB free in {folder}"
     if total + DEFAULT_MIN_FREE_BYTES > free:
         raise UsageError(f"{text}: not enough (with {DEFAULT_MIN_FREE_BYTES / 1e6:.0f} MB to "
                          "spare): free space, choose another --out, or --no-camera")

@@ -99,14 +99,40 @@ class DaqLayout:
         return self.units.get(channel, unit_of(channel))
 
 
+FrameCompression = Literal["gzip", "lzf", "none"]
+FRAME_COMPRESSIONS: tuple[FrameCompression, ...] = ("gzip", "lzf", "none")
+FRAME_GZIP_LEVEL = 1
+"""Deflate level of ``gzip`` frames: levels 4 and 6 save 5-10 % more and write 1.3-8x slower
+(benchmarks/bench_frame_compression.py, docs/performance.md)."""
+
+FRAME_BYTES_PER_PIXEL: dict[FrameCompression, float] = {"gzip": 0.411, "lzf": 0.622, "none": 1.0}
+"""Stored bytes per pixel of contact images by compression, measured on the simulated camera's
+640 x 480 frames (read noise 1.2 grey levels RMS, loads 0-300 N): 126.1, 191.0 and 307.2 kB per
+frame (benchmarks/bench_frame_compression.py). Noisier images compress less, up to 1.0."""
+
+
+def frame_filters(compression: FrameCompression) -> dict[str, Any]:
+    """``h5py`` ``create_dataset`` keywords of the frames' compression (filters built into HDF5:
+    any h5py or HDF5 user reads them without plug-ins)."""
+    if compression == "gzip":
+        return {"compression": "gzip", "compression_opts": FRAME_GZIP_LEVEL}
+    if compression == "lzf":
+        return {"compression": "lzf"}
+    if compression == "none":
+        return {}
+    raise ValueError(
+        f"frame compression must be one of {', '.join(FRAME_COMPRESSIONS)}, got {compression!r}"
+    )
+
+
 @dataclass(frozen=True)
 class CameraLayout:
-    """The camera stream: 8-bit grey frames of a fixed size."""
+    """The camera stream: 8-bit grey frames of a fixed size, one frame per HDF5 chunk."""
 
     height_px: int
     width_px: int
     frame_rate_hz: float = 60.0
-    compression: Literal["none", "lzf"] = "lzf"
+    compression: FrameCompression = "gzip"
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
 """Checks made before a run starts: can the run file be created, and is there room for it?
 
 Failing here, before any motion or acquisition, is the point: a run that cannot be stored must not
-start. The estimate of the bytes a run needs is deliberately simple (raw sample and frame sizes);
-the margin ``min_free_bytes`` covers metadata, chunk padding and the rest of the system.
+start. The estimate of the bytes a run needs is the raw sample size plus the frames at the size
+measured for contact images with the run's compression
+(:data:`rigctl.storage.layout.FRAME_BYTES_PER_PIXEL`); the margin ``min_free_bytes`` covers
+metadata, chunk padding, noisier images and the rest of the system.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import shutil
 from pathlib import Path
 
 from rigctl.storage.errors import StorageError
-from rigctl.storage.layout import CameraLayout, DaqLayout
+from rigctl.storage.layout import FRAME_BYTES_PER_PIXEL, CameraLayout, DaqLayout
 
 DEFAULT_MIN_FREE_BYTES = 64 * 1024 * 1024
 """Free space kept in reserve beyond a run's estimated size."""
@@ -21,13 +23,23 @@ _BYTES_PER_VALUE = 8  # float64 samples and times
 
 
 def estimate_run_bytes(
-    duration_s: float, daq: DaqLayout, camera: CameraLayout | None = None
+    duration_s: float, daq: DaqLayout, camera: CameraLayout | None = None, *, at_most: bool = False
 ) -> int:
-    """Raw bytes of ``duration_s`` of recording: samples (channels + time) plus frames."""
+    """Bytes of ``duration_s`` of recording: samples (channels + time, float64) plus frames.
+
+    Frames count at the size measured for contact images with ``camera.compression``, or
+    uncompressed with ``at_most`` (images that do not compress: noise, a saturated sensor).
+    """
     per_s = daq.sample_rate_hz * _BYTES_PER_VALUE * (len(daq.channels) + 1)
     if camera is not None:
-        per_s += camera.frame_rate_hz * (camera.height_px * camera.width_px + 2 * _BYTES_PER_VALUE)
+        per_s += camera.frame_rate_hz * (frame_bytes(camera, at_most=at_most) + 2 * _BYTES_PER_VALUE)
     return int(per_s * max(duration_s, 0.0))
+
+
+def frame_bytes(camera: CameraLayout, *, at_most: bool = False) -> float:
+    """Stored bytes of one frame: measured for contact images, or the raw pixels ``at_most``."""
+    pixels = camera.height_px * camera.width_px
+    return float(pixels) if at_most else pixels * FRAME_BYTES_PER_PIXEL[camera.compression]
 
 
 def check_output_path(

@@ -380,6 +380,8 @@ def _check_layout(daq: layout.DaqLayout, camera: layout.CameraLayout | None) -> 
         raise ValueError(f"sample_rate_hz must be positive, got {daq.sample_rate_hz}")
     if camera is not None and (camera.height_px <= 0 or camera.width_px <= 0):
         raise ValueError(f"camera frame size must be positive, got {camera}")
+    if camera is not None:
+        layout.frame_filters(camera.compression)  # ValueError naming an unknown compression
 
 
 def _block_columns(
@@ -521,8 +523,8 @@ def _create_camera(f: h5py.File, camera: layout.CameraLayout, start_time: str) -
         maxshape=(None, *shape),
         chunks=(1, *shape),
         dtype=np.uint8,
-        compression=None if camera.compression == "none" else camera.compression,
         fletcher32=True,
+        **layout.frame_filters(camera.compression),
     )
     _growing(group, "time", np.float64, 256, "s").attrs["start"] = start_time
     _growing(group, "seq", np.int64, 256)

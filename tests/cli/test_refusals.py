@@ -37,10 +37,10 @@ def test_the_dry_run_states_the_file_size_and_refuses_a_disk_too_small(
 
     assert main(["run", "slide_hold_slide", "--dry-run", "--no-camera"]) == 0
     out = capsys.readouterr().out
-    assert "run file: at most 19 MB (19 MB of samples)" in out
+    assert "run file: about 19 MB (19 MB of samples)" in out
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil, "disk_usage", lambda _p: usage(10**9, 10**9 - 10**8, 10**8))
-    assert main(["run", "slide_hold_slide", "--dry-run"]) == 2  # 4.2 GB of frames at most
+    assert main(["run", "slide_hold_slide", "--dry-run"]) == 2  # about 1.8 GB of frames
     err = capsys.readouterr().err
     assert "not enough" in err and "--no-camera" in err and err.count("\n") == 1
 

@@ -207,7 +207,7 @@ def test_adapters_build_every_device_config() -> None:
 
     assert daq_layout(c).sample_rate_hz == 2048.0
     layout = camera_layout(c)
-    assert (layout.height_px, layout.width_px, layout.compression) == (480, 640, "lzf")
+    assert (layout.height_px, layout.width_px, layout.compression) == (480, 640, "gzip")
     rig = virtual_rig_config(c)
     assert (rig.sample_rate_hz, rig.seed) == (2048.0, 7)
     assert rig.probes[1].range_m == 5e-5 and rig.probes[0].range_m == 74e-6
