@@ -52,15 +52,19 @@ def sweep_figures(sw: SweepSummary, folder: Path) -> list[str]:
     ax_d.set_ylabel("stable drop / peak")
     ax_d.set_title("stick-slip strength (where it fades)")
     im1 = np.array([p.im1 for p in pts])
-    if np.isfinite(im1).any():
-        ax_im.plot(fn, im1, "o-")
-        ax_imk.plot(im1, k1, "o")
-        for f, x, y in zip(fn, im1, k1, strict=True):
-            ax_imk.annotate(f"{f:.0f} N", (x, y), fontsize=7)
+    has = np.isfinite(im1)
+    if has.any():
+        ax_im.plot(fn[has], im1[has], "o-")
+        ax_imk.plot(im1[has], k1[has], "o")
+        for f, x, y in zip(fn[has], im1[has], k1[has], strict=True):
+            ax_imk.annotate(f"{f:.0f} N", (x, y), fontsize=7, xytext=(3, 3),
+                            textcoords="offset points")
     else:
         for ax in (ax_im, ax_imk):
-            ax.text(0.5, 0.5, "no frames: Im(1) not measured", ha="center",
-                    transform=ax.transAxes)
+            ax.text(0.5, 0.5, "no camera frames:\nIm(1) not measured", ha="center",
+                    va="center", transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
     ax_im.set_xlabel("Fn [N]")
     ax_im.set_ylabel("Im(1) [grey level]")
     ax_im.set_title("Fig. 11c: Im(1) against Fn")

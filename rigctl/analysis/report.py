@@ -133,7 +133,7 @@ def _sweep_context(sw: SweepSummary, folder: Path) -> dict[str, Any]:
     return {
         "vanishes": "-" if not math.isfinite(sw.vanishes_below_N) else f"{sw.vanishes_below_N:.0f} N",
         "fades": "-" if not math.isfinite(sw.fades_below_N) else f"{sw.fades_below_N:.0f} N",
-        "rows": rows,
+        "rows": rows, "notes": list(sw.notes),
         "figures": figures_sweep.sweep_figures(sw, folder),
     }
 

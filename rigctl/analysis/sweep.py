@@ -2,7 +2,8 @@
 
 A sweep is any set of passes at different normal forces: one force-sweep file (one pass per force)
 or a folder of runs. Per pass: Fn, mu_s,max, mu_s, mu_k (with spread), K(1), K(i) of every cycle,
-Im(1) when the run has frames, and how strongly it sticks and slips:
+Im(1) when the run has frames (Fig. 11c-d: Im(1) against Fn, K(1) against Im(1); the sweep's notes
+say "no camera frames" when no run has them), and how strongly it sticks and slips:
 
 * ``relative_drop`` = median over the stable cycles of drop / peak (0 when the pass has no stable
   slip): the size of the stick-slip oscillation against the force level.
@@ -90,6 +91,14 @@ def summarise(points: list[SweepPoint]) -> SweepSummary:
     fns = np.array([p.fn_N for p in pts])
     if np.unique(np.round(fns)).size < 2:
         notes.append("fewer than two normal forces: no force dependence to show")
+    im1 = np.array([p.im1 for p in pts], dtype=np.float64)
+    if pts and not np.isfinite(im1).any():
+        notes.append("no camera frames: Im(1) against Fn and K(1) against Im(1) (Fig. 11c-d) "
+                     "not measured")
+    elif not np.isfinite(im1).all():
+        missing = sorted({p.run for p, m in zip(pts, im1, strict=True) if not math.isfinite(m)})
+        notes.append("no camera frames (or no Im(1)) in " + ", ".join(missing)
+                     + ": left out of Fig. 11c-d")
     present = np.array([p.n_stable > 0 and p.relative_drop > 0 for p in pts], dtype=bool)
     vanish = math.nan
     if present.any() and not present.all():
