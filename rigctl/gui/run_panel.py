@@ -45,7 +45,7 @@ from PySide6.QtWidgets import (
 
 from experiments.context import Controls
 from experiments.errors import PlanError
-from experiments.params import ParamDef, parse_assignments, resolve
+from experiments.params import parse_assignments, resolve
 from experiments.protocols import PROTOCOLS, Protocol
 from experiments.runner import Plan, Runner, RunOutcome
 from rigctl.acquisition import Acquisition
@@ -53,10 +53,14 @@ from rigctl.acquisition.publisher import Subscription
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.gui.live_plot import LivePlot
+from rigctl.gui.queue_view import QueueView
+from rigctl.gui.run_summary import values_summary
 from rigctl.rigs import OpenRig, open_rig, parse_speed
 from rigctl.runservice.client import ServiceClient
+from rigctl.runservice.culprits import refusal_culprits
 from rigctl.runservice.events import WarningForwarder
 from rigctl.runservice.frames import start_forwarding
+from rigctl.runservice.queue import QueueState
 from rigctl.runservice.wire import Address, JobSpec
 from rigctl.status import RunStatus
 from rigctl.storage.layout import RunDescription
@@ -94,6 +98,8 @@ class _Job:
     overwrite: bool
     camera: bool
     controls: Controls
+    operator: str
+    notes: str
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,8 @@ class _Result:
     """'dry' (plan shown), 'refused' (plan error), 'run' (outcome), 'error' (nothing recorded)."""
     message: str = ""
     outcome: RunOutcome | None = None
+    culprits: tuple[str, ...] = ()
+    """For 'refused': the edited parameters that cause the refusal (their rows are marked)."""
 
 
 class _WorkerSignals(QObject):
@@ -119,6 +127,8 @@ class _WorkerSignals(QObject):
     live_frames = Signal(object)  # list of LiveFrames just drained (GUI thread; the live view)
     run_event = Signal(str, str)  # level ("info", "warning", "error"), text: the run's events
     run_started = Signal(object)  # Path of the run file: a run (not a dry run) is starting
+    remote_started = Signal(object)  # JobSpec: the run service started a run (the queue's too)
+    queue_state = Signal(object)  # QueueState from the run service
 
 
 class _LiveMailbox:
@@ -176,6 +186,19 @@ class RunPanel(QWidget):
         self._t_latest = math.nan
         self._wall_start = 0.0
         self._speed = 1.0
+        self._pause_rig_t0 = math.nan
+        """Rig time (latest received) when the current pause began; NaN when not paused."""
+        self._pause_wall_t0 = math.nan
+        self._step_paused_rig_s = 0.0
+        """Rig time spent paused since the current step began (not progress)."""
+        self._paused_rig_s = 0.0
+        self._paused_wall_s = 0.0
+        """Rig and wall time spent paused in this run (left out of the rig-time/wall-time rate)."""
+        self._refusal_shown = False
+        self._running_protocol = ""
+        self._queue_item: int | None = None
+        """The queue item of the run going (None: a run started on its own)."""
+        self._file_shown = False
         self._sig = _WorkerSignals(self)
         self._sig.planned.connect(self._on_planned)
         self._sig.subscribed.connect(self._on_subscribed)
@@ -183,6 +206,7 @@ class RunPanel(QWidget):
         self._sig.done.connect(self._on_done)
         self._sig.service_log.connect(self._on_service_log)
         self._sig.service_lost.connect(self._on_service_lost)
+        self._sig.remote_started.connect(self._on_remote_started)
         self._client: ServiceClient | None = None
         self._remote_busy = False
         self._mailbox = _LiveMailbox(SUBSCRIPTION_BLOCKS)
@@ -198,6 +222,13 @@ class RunPanel(QWidget):
         self._timer = QTimer(self)
         self._timer.setInterval(DRAIN_INTERVAL_MS)
         self._timer.timeout.connect(self._tick)
+        self._sig.queue_state.connect(self._on_queue_state)
+        self.queue_view.command.connect(self._on_queue_command)
+        self.queue_view.add_requested.connect(self.add_to_queue)
+        if self._client is None:
+            self.queue_view.setEnabled(False)
+            self.queue_view.setToolTip("the queue lives in the run service; this window runs "
+                                       "protocols in process (--in-process or a held rig)")
         self._set_state("idle")
         self._fill_params()
 
@@ -222,7 +253,7 @@ class RunPanel(QWidget):
         header.setStretchLastSection(True)
         self.param_table.setColumnWidth(1, 170)
         self.param_table.verticalHeader().setVisible(False)
-        self.param_table.itemChanged.connect(self._clear_param_marks)
+        self.param_table.itemChanged.connect(self._on_value_edited)
 
         self.out_edit = QLineEdit()
         self.out_edit.setPlaceholderText(
@@ -248,6 +279,10 @@ class RunPanel(QWidget):
             self.speed_combo.setEnabled(False)
         self.camera_check = QCheckBox("record camera frames")
         self.camera_check.setChecked(True)
+        self.operator_edit = QLineEdit(self.config.rig.operator)
+        self.operator_edit.setToolTip("stored in the run file's metadata (as rigctl run --operator)")
+        self.notes_edit = QLineEdit()
+        self.notes_edit.setPlaceholderText("free text stored with the run (as rigctl run --notes)")
 
         form = QFormLayout()
         form.addRow("Protocol", self.protocol_combo)
@@ -255,6 +290,8 @@ class RunPanel(QWidget):
         form.addRow("Run file", out_row)
         form.addRow("Speed", self.speed_combo)
         form.addRow("", self.camera_check)
+        form.addRow("Operator", self.operator_edit)
+        form.addRow("Notes", self.notes_edit)
 
         self.dry_button = QPushButton("Dry run")
         self.dry_button.setToolTip("check the plan against the rig's limits; nothing moves")
@@ -278,6 +315,9 @@ class RunPanel(QWidget):
         self.progress_bar.setRange(0, 1000)
         self.progress_bar.setFormat("%p %")
         self.progress_label = QLabel("")
+        self.file_label = QLabel("")
+        self.file_label.setWordWrap(True)
+        self.file_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.status_label = QLabel("ready")
         self.status_label.setWordWrap(True)
         self.status_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -301,10 +341,13 @@ class RunPanel(QWidget):
         left.addLayout(buttons)
         left.addWidget(self.progress_bar)
         left.addWidget(self.progress_label)
+        left.addWidget(self.file_label)
         left.addWidget(self.status_label)
+        self.queue_view = QueueView()
         right = QVBoxLayout()
         right.addWidget(self.live, 3)
         right.addWidget(self.plan_view, 2)
+        right.addWidget(self.queue_view, 2)
         top = QHBoxLayout(self)
         top.addLayout(left, 1)
         top.addLayout(right, 1)
@@ -317,7 +360,6 @@ class RunPanel(QWidget):
 
     def _fill_params(self) -> None:
         p = self.protocol
-        self.summary_label.setText(p.summary)
         table = self.param_table
         table.blockSignals(True)
         table.setRowCount(len(p.params))
@@ -331,6 +373,31 @@ class RunPanel(QWidget):
                     item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                 table.setItem(row, col, item)
         table.blockSignals(False)
+        self._update_summary()
+        self._clear_stale()
+
+    def _defaults(self) -> dict[str, str]:
+        return {d.name: format_value(d.default) for d in self.protocol.params}
+
+    def _update_summary(self) -> None:
+        self.summary_label.setText(values_summary(self.protocol, self.param_values(),
+                                                  self._defaults()))
+
+    def _on_value_edited(self, item: QTableWidgetItem) -> None:
+        if item.column() != 1:
+            return
+        self._clear_param_marks()
+        self._update_summary()
+        self._clear_stale()
+
+    def _clear_stale(self) -> None:
+        """A refusal shown for other values (or another protocol) is no longer true: clear it."""
+        if not self._refusal_shown or self.busy:
+            return
+        self._refusal_shown = False
+        self.plan_view.clear()
+        self.plan_view.setStyleSheet("")
+        self._status("values changed: dry run again to check them", None, announce=False)
 
     def param_values(self) -> dict[str, str]:
         """The table's values as text, by parameter name."""
@@ -356,33 +423,60 @@ class RunPanel(QWidget):
 
         Raises PlanError naming the parameter (and marks its row)."""
         p = self.protocol
-        defaults = {d.name: format_value(d.default) for d in p.params}
+        defaults = self._defaults()
         items = [f"{k}={v}" for k, v in self.param_values().items() if v.strip() != defaults[k]]
         given = parse_assignments(items)
         try:
             resolve(p.params, given, p.name)
         except PlanError as exc:
-            self._mark_bad(p.params, str(exc))
+            self._mark_bad((), str(exc))
             raise
         return given
 
-    def _mark_bad(self, defs: tuple[ParamDef, ...], message: str) -> None:
-        for row, d in enumerate(defs):
-            if f"'{d.name}'" in message:
-                cell = self.param_table.item(row, 1)
-                if cell is not None:
-                    self.param_table.blockSignals(True)
-                    cell.setBackground(QColor("#ffcdd2"))
-                    self.param_table.blockSignals(False)
+    def marked_params(self) -> list[str]:
+        """The parameters whose row is marked as the cause of a refusal or a bad value."""
+        return [name for name, row in self._rows().items()
+                if (cell := self.param_table.item(row, 1)) is not None
+                and cell.data(Qt.ItemDataRole.UserRole) is not None]
 
-    def _clear_param_marks(self, item: QTableWidgetItem) -> None:
-        if item.column() == 1:
-            self.param_table.blockSignals(True)
-            for row in range(self.param_table.rowCount()):
-                cell = self.param_table.item(row, 1)
-                if cell is not None:
-                    cell.setBackground(QColor(0, 0, 0, 0))
-            self.param_table.blockSignals(False)
+    def _rows(self) -> dict[str, int]:
+        rows: dict[str, int] = {}
+        for row in range(self.param_table.rowCount()):
+            item = self.param_table.item(row, 0)
+            if item is not None:
+                rows[item.text()] = row
+        return rows
+
+    def _mark_bad(self, names: tuple[str, ...], message: str) -> None:
+        """Mark in red the rows of ``names`` and of every parameter the message names; the cause
+        is in the value cell's tooltip (the normal tooltip comes back with the next edit)."""
+        self.param_table.blockSignals(True)
+        for name, row in self._rows().items():
+            if name not in names and f"'{name}'" not in message:
+                continue
+            for col in range(self.param_table.columnCount()):
+                cell = self.param_table.item(row, col)
+                if cell is None:
+                    continue
+                cell.setBackground(QColor("#ffcdd2"))
+                if col == 1:
+                    cell.setData(Qt.ItemDataRole.UserRole, cell.toolTip())
+                    cell.setToolTip(f"this value causes the refusal: {message}")
+        self.param_table.blockSignals(False)
+
+    def _clear_param_marks(self) -> None:
+        self.param_table.blockSignals(True)
+        for row in range(self.param_table.rowCount()):
+            for col in range(self.param_table.columnCount()):
+                cell = self.param_table.item(row, col)
+                if cell is None:
+                    continue
+                cell.setBackground(QColor(0, 0, 0, 0))
+                saved = cell.data(Qt.ItemDataRole.UserRole)
+                if col == 1 and saved is not None:
+                    cell.setToolTip(str(saved))
+                    cell.setData(Qt.ItemDataRole.UserRole, None)
+        self.param_table.blockSignals(False)
 
     def _browse(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Run file", self.out_edit.text()
@@ -413,7 +507,15 @@ class RunPanel(QWidget):
         elif kind == "progress":
             self._sig.progress.emit(*payload)
         elif kind == "done":
-            self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome))
+            self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome,
+                                        tuple(getattr(payload, "culprits", ()))))
+        elif kind == "started":
+            self._sig.remote_started.emit(payload)
+        elif kind == "queue":
+            self._sig.queue_state.emit(payload)
+        elif kind in ("hello", "state"):
+            if getattr(payload, "queue", None) is not None:
+                self._sig.queue_state.emit(payload.queue)
         elif kind == "devices":
             self._sig.devices.emit(payload)
         elif kind == "jog_result":
@@ -435,6 +537,74 @@ class RunPanel(QWidget):
         self._set_state("idle")
         self._status("the run service went away; restart the window to reconnect", _RED)
 
+    def _default_out(self, taken: set[str]) -> Path:
+        """``<storage>/<protocol>_<date-time>.h5``, with ``_2``, ``_3``... if taken or existing."""
+        folder = Path(self.config.storage.directory)
+        folder.mkdir(parents=True, exist_ok=True)
+        stem = f"{self.protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}"
+        out, n = folder / f"{stem}.h5", 1
+        while str(out) in taken or out.exists():
+            n += 1
+            out = folder / f"{stem}_{n}.h5"
+        return out
+
+    def _form_out(self, taken: set[str]) -> tuple[Path, bool] | None:
+        """The run file of the form (asking before overwriting) and whether to overwrite; None if
+        not to start (the status says why)."""
+        text = self.out_edit.text().strip()
+        if text:
+            out = Path(text).expanduser()
+            if str(out) in taken:
+                self._status(f"not queued: {out} is already the run file of a queued run", _ORANGE)
+                return None
+        else:
+            try:
+                out = self._default_out(taken)
+            except OSError as exc:
+                self._status(f"storage folder {self.config.storage.directory}: {exc}", _RED)
+                return None
+        if out.exists():
+            if not self._ask(f"{out} exists. Overwrite it?"):
+                self._status("not started: the run file exists", _ORANGE)
+                return None
+            return out, True
+        return out, False
+
+    def _begin(self, protocol_name: str, out: Path | None, dry: bool, speed: float,
+               queue_item: int | None) -> None:
+        """Reset what the panel shows for a new dry run or run (started here or by the queue)."""
+        self._controls = Controls()
+        self.run_path = out
+        self._frames.drain()
+        self._speed = speed
+        self._plan = None
+        self._progress = None
+        self._pause_rig_t0 = self._pause_wall_t0 = math.nan
+        self._step_paused_rig_s = self._paused_rig_s = self._paused_wall_s = 0.0
+        self.last_outcome = None
+        self._running_protocol = protocol_name
+        self._queue_item = queue_item
+        self._file_shown = False
+        self._refusal_shown = False
+        self._clear_param_marks()
+        self.file_label.setText("")
+        self.progress_label.setText("")
+        if not dry:
+            self._reset_plot()
+            self._sig.run_started.emit(out)
+            self.progress_bar.setValue(0)
+            self.progress_label.setText("starting…")
+            self.file_label.setText(f"run file (not yet created): {out}")
+            self.file_label.setStyleSheet("color: gray")
+        self.plan_view.setStyleSheet("")
+        item = f"queue item {queue_item}: " if queue_item is not None else ""
+        self._status("dry run: checking the plan against the limits…" if dry
+                     else f"{item}starting {protocol_name}…", None)
+        self._set_state("busy" if dry else "running")
+        if self._client is not None:
+            self._live_announced = False
+            self._mailbox.drain()
+
     def _launch(self, dry: bool) -> None:
         if self.busy:
             return
@@ -448,46 +618,19 @@ class RunPanel(QWidget):
         out = None
         overwrite = False
         if not dry:
-            text = self.out_edit.text().strip()
-            if text:
-                out = Path(text).expanduser()
-            else:
-                folder = Path(self.config.storage.directory)
-                try:
-                    folder.mkdir(parents=True, exist_ok=True)
-                except OSError as exc:
-                    self._status(f"storage folder {folder}: {exc}", _RED)
-                    return
-                out = folder / f"{self.protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}.h5"
-            if out.exists():
-                if not self._ask(f"{out} exists. Overwrite it?"):
-                    self._status("not started: the run file exists", _ORANGE)
-                    return
-                overwrite = True
-        self._controls = Controls()
-        self.run_path = out
-        self._frames.drain()
+            chosen = self._form_out(set())
+            if chosen is None:
+                return
+            out, overwrite = chosen
+        operator, notes = self.operator_edit.text().strip(), self.notes_edit.text().strip()
+        self._begin(self.protocol.name, out, dry, speed, None)
+        assert self._controls is not None
         job = _Job(dry, self.protocol, given, speed, speed_text, out, overwrite,
-                   self.camera_check.isChecked(), self._controls)
-        self._speed = speed
-        self._plan = None
-        self._progress = None
-        self.last_outcome = None
-        if not dry:
-            self._reset_plot()
-            self._sig.run_started.emit(out)
-            self.progress_bar.setValue(0)
-            self.progress_label.setText("starting…")
-        self.plan_view.setStyleSheet("")
-        self._status("dry run: checking the plan against the limits…" if dry
-                     else f"starting {self.protocol.name}…", None)
-        self._set_state("busy" if dry else "running")
+                   self.camera_check.isChecked(), self._controls, operator, notes)
         if self._client is not None:
-            self._live_announced = False
-            self._mailbox.drain()
             spec = JobSpec(self.protocol.name, dict(given), None if out is None else str(out),
                            overwrite=overwrite, camera=self.camera_check.isChecked(), dry=dry,
-                           speed_text=speed_text)
+                           speed_text=speed_text, operator=operator, notes=notes)
             self._remote_busy = self._client.send("start", spec)
             if not self._remote_busy:
                 self._on_service_lost()
@@ -496,8 +639,60 @@ class RunPanel(QWidget):
                                         daemon=False)
         self._thread.start()
 
+    # ------------------------------------------------------------------ the queue (run service)
+    def add_to_queue(self) -> bool:
+        """Queue the form's protocol, values, run file, operator and notes; False if refused."""
+        if self._client is None:
+            self._status("the queue needs the run service (not with --in-process)", _RED)
+            return False
+        try:
+            given = self._given()
+            speed_text = self.speed_combo.currentText().strip()
+            parse_speed(speed_text)
+        except (PlanError, ValueError) as exc:
+            self._status(str(exc), _RED)
+            return False
+        taken = {str(it.spec.out) for it in self.queue_view.state.items
+                 if it.status in ("pending", "running")}
+        chosen = self._form_out(taken)
+        if chosen is None:
+            return False
+        out, overwrite = chosen
+        spec = JobSpec(self.protocol.name, dict(given), str(out), overwrite=overwrite,
+                       camera=self.camera_check.isChecked(), speed_text=speed_text,
+                       operator=self.operator_edit.text().strip(),
+                       notes=self.notes_edit.text().strip())
+        if not self._client.send("queue_add", spec):
+            self._on_service_lost()
+            return False
+        self._status(f"queued {self.protocol.name} -> {out}", None, announce=False)
+        return True
+
+    def _on_queue_command(self, kind: str, payload: Any) -> None:
+        if kind == "queue_abort" and not self._ask(
+                "Abort the queue? The current run is aborted (safe state) and the pending runs "
+                "are dropped."):
+            return
+        if not self.send_service(kind, payload):
+            self._status("the run service is gone: the queue cannot be changed", _RED)
+
+    def _on_queue_state(self, state: QueueState) -> None:
+        self.queue_view.show_state(state)
+        self._set_state(self.state)
+
+    def _on_remote_started(self, spec: JobSpec) -> None:
+        """The service started a run that this window did not launch: a queued one."""
+        if spec.queue_item is None:
+            return
+        self._remote_busy = True
+        self._begin(spec.protocol, None if spec.out is None else Path(spec.out), spec.dry,
+                    parse_speed(spec.speed_text), spec.queue_item)
+
     def pause(self) -> None:
         if self._controls is not None and self.busy:
+            if not self._controls.paused:
+                self._pause_rig_t0 = self._t_latest
+                self._pause_wall_t0 = time.monotonic()
             self._controls.pause()
             if self._client is not None:
                 self._client.send("pause")
@@ -507,14 +702,26 @@ class RunPanel(QWidget):
 
     def resume(self) -> None:
         if self._controls is not None and self.busy:
+            self._end_pause()
             self._controls.resume()
             if self._client is not None:
                 self._client.send("resume")
             self._set_state("running")
             self._status("running", None)
 
+    def _end_pause(self) -> None:
+        """Count the pause just ended as paused time (progress and ETA leave it out)."""
+        if math.isfinite(self._pause_wall_t0):
+            self._paused_wall_s += time.monotonic() - self._pause_wall_t0
+        if math.isfinite(self._pause_rig_t0) and math.isfinite(self._t_latest):
+            held = max(self._t_latest - self._pause_rig_t0, 0.0)
+            self._step_paused_rig_s += held
+            self._paused_rig_s += held
+        self._pause_rig_t0 = self._pause_wall_t0 = math.nan
+
     def abort(self, reason: str = ABORT_REASON) -> None:
         if self._controls is not None and self.busy:
+            self._end_pause()
             self._controls.abort(reason)
             self._controls.resume()
             if self._client is not None:
@@ -604,8 +811,10 @@ class RunPanel(QWidget):
 
     def _set_state(self, state: str) -> None:
         idle = state == "idle"
-        self.dry_button.setEnabled(idle)
-        self.start_button.setEnabled(idle)
+        queue_running = self.queue_view.state.running
+        self.dry_button.setEnabled(idle and not queue_running)
+        self.start_button.setEnabled(idle and not queue_running)
+        self.queue_view.set_busy(not idle and self._queue_item is None)
         self.protocol_combo.setEnabled(idle)
         self.param_table.setEnabled(idle)
         self.out_edit.setEnabled(idle)
@@ -643,7 +852,9 @@ class RunPanel(QWidget):
                 try:
                     plan, _ = runner.plan()
                 except PlanError as exc:
-                    result = _Result("refused", f"dry run refused: {exc}")
+                    x0 = rig.devices.tangential_stage.position_m()
+                    result = _Result("refused", f"dry run refused: {exc}", culprits=refusal_culprits(
+                        job.protocol, job.given, rig.limits, x0, str(exc)))
                     return
                 self._sig.planned.emit(plan)
                 if job.dry:
@@ -677,7 +888,7 @@ class RunPanel(QWidget):
             sig.progress.emit(i, n, desc, elapsed, eta, ctx.acq.t_s if ctx else math.nan)
 
         desc = RunDescription(
-            protocol=job.protocol.name, operator=self.config.rig.operator,
+            protocol=job.protocol.name, operator=job.operator, notes=job.notes,
             config_toml=to_toml(rig.config),
             metadata={"backend": self.backend, "speed": job.speed_text, "rig": self.config.rig.name,
                       "started_from": "gui"},
@@ -706,11 +917,27 @@ class RunPanel(QWidget):
         self._wall_start = time.monotonic()
         self._timer.start()
         if self.state == "running":
-            self._status(f"running {self.protocol.name}: recording", None)
+            item = f"queue item {self._queue_item}: " if self._queue_item is not None else ""
+            self._status(f"{item}running {self._running_protocol}: recording", None)
+        self._show_file()
+
+    def _show_file(self) -> None:
+        """The run file's name once it exists (checked until it does: it is created before the
+        acquisition starts, so by the first live data at the latest)."""
+        if self._file_shown or self.run_path is None or not self.run_path.exists():
+            return
+        self._file_shown = True
+        self.file_label.setText(f"run file: {self.run_path}")
+        self.file_label.setStyleSheet("")
 
     def _on_progress(self, i: int, n: int, desc: str, elapsed: float, eta: float,
                      t_dev: float) -> None:
         self._progress = (i, n, desc, elapsed, eta, t_dev)
+        self._step_paused_rig_s = 0.0
+        if math.isfinite(self._pause_rig_t0) and math.isfinite(t_dev):
+            # a step began during a pause (its hold ended): the pause counts from the step's start
+            self._paused_rig_s += max(t_dev - self._pause_rig_t0, 0.0)
+            self._pause_rig_t0 = max(self._pause_rig_t0, t_dev)
         self._show_progress()
 
     def _on_done(self, result: _Result) -> None:
@@ -719,14 +946,25 @@ class RunPanel(QWidget):
         self._timer.stop()
         self._sub = None
         self._thread = None
+        self._end_pause()
+        queued = self._queue_item is not None
+        self._queue_item = None
         self._set_state("idle")
+        self._show_file()
+        if result.kind != "run":
+            self.progress_label.setText("")  # no "starting…" left over
+            self.progress_bar.setValue(0)
+            if not self._file_shown:
+                self.file_label.setText("")
         if result.kind == "dry":
             self._status("dry run: plan within the limits; nothing moved", _GREEN)
         elif result.kind == "refused":
             self.plan_view.setPlainText(result.message)
             self.plan_view.setStyleSheet(f"color: {_RED}")
             self._status(result.message, _RED)
-            self._mark_bad(self.protocol.params, result.message)
+            if not queued:  # a queued run's values are not those of the form
+                self._mark_bad(result.culprits, result.message)
+                self._refusal_shown = True
         elif result.kind == "error":
             self.plan_view.setStyleSheet(f"color: {_RED}")
             self._status(f"not run: {result.message}", _RED)
@@ -770,6 +1008,7 @@ class RunPanel(QWidget):
         sub = self._sub
         if sub is None:
             return
+        self._show_file()
         blocks = sub.drain()
         frames = self._frames.drain()
         if frames:
@@ -785,30 +1024,37 @@ class RunPanel(QWidget):
         self._show_progress()
 
     def _show_progress(self) -> None:
+        """Progress and ETA from the plan: the steps done plus the rig time spent in the current
+        step (capped at its estimate). Paused rig time is left out, and while paused the numbers
+        stand still at the moment of the pause (the rig's clock and the recording go on)."""
         plan, prog = self._plan, self._progress
         if plan is None or prog is None:
             return
         i, n, desc, elapsed, eta, t_dev = prog
+        paused = math.isfinite(self._pause_rig_t0) or math.isfinite(self._pause_wall_t0)
+        t_now = self._pause_rig_t0 if paused else self._t_latest
+        wall_now = self._pause_wall_t0 if math.isfinite(self._pause_wall_t0) else time.monotonic()
         total = max(plan.duration_s, 1e-9)
         step_est = plan.steps[i - 1].estimate_s if 0 < i <= len(plan.steps) else 0.0
-        in_step = 0.0
-        if math.isfinite(self._t_latest) and math.isfinite(t_dev):
-            in_step = min(max(self._t_latest - t_dev, 0.0), step_est)
+        since_step = 0.0
+        if math.isfinite(t_now) and math.isfinite(t_dev):
+            since_step = max(t_now - t_dev, 0.0)
+        in_step = min(max(since_step - self._step_paused_rig_s, 0.0), step_est)
         done = min(total - eta + in_step, total)
         remaining = max(eta - in_step, 0.0)
         self.progress_bar.setValue(round(1000 * done / total))
-        rig_elapsed = elapsed + (max(self._t_latest - t_dev, 0.0)
-                                 if math.isfinite(self._t_latest) and math.isfinite(t_dev) else 0.0)
-        wall = time.monotonic() - self._wall_start
-        rate = rig_elapsed / wall if wall > 1.0 and rig_elapsed > 0 else (
+        rig_elapsed = elapsed + since_step
+        wall = wall_now - self._wall_start - self._paused_wall_s
+        active_rig = rig_elapsed - self._paused_rig_s
+        rate = active_rig / wall if wall > 1.0 and active_rig > 0 else (
             self._speed if math.isfinite(self._speed) else math.nan)
         wall_eta = ""
         if rate == rate and rate > 0:
             wall_s = remaining / rate
             wall_eta = f" (~{wall_s:.0f} s wall)" if wall_s >= 1 else " (<1 s wall)"
-        paused = " [paused]" if self._controls is not None and self._controls.paused else ""
+        note = " [paused: progress and ETA held]" if paused else ""
         self.progress_label.setText(
-            f"step {i}/{n}: {desc}{paused}\nrig time {rig_elapsed:.0f} s of ~{total:.0f} s, "
+            f"step {i}/{n}: {desc}{note}\nrig time {rig_elapsed:.0f} s of ~{total:.0f} s, "
             f"ETA {remaining:.0f} s{wall_eta}")
 
 

@@ -43,10 +43,13 @@ from experiments.runner import Runner, get_protocol
 from rigctl.acquisition import Acquisition
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
+from rigctl.errors import InputError
 from rigctl.rigs import OpenRig, open_rig
+from rigctl.runservice.culprits import refusal_culprits
 from rigctl.runservice.devices import RigSnapshot, jog, reset_emergency_stop, snapshot
 from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import start_forwarding
+from rigctl.runservice.queue import RunQueue
 from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
 from rigctl.storage.layout import RunDescription
 
@@ -156,6 +159,8 @@ class RunService:
         self._listener: Listener | None = None
         self._ever_client = False
         self._last_snapshot_s = 0.0
+        self._queue = RunQueue()
+        self.state.queue = self._queue.state()
 
     # ------------------------------------------------------------------ lifecycle
     def serve(self) -> None:
@@ -276,10 +281,71 @@ class RunService:
             self.reset_emergency_stop()
         elif kind == "state":
             link.send("state", self.state)
+        elif kind.startswith("queue_"):
+            self.queue_command(kind, payload)
         elif kind == "shutdown":
             self.stop("run service shut down by the operator")
         else:
             link.send("log", ("error", f"unknown command {kind!r}"))
+
+    def queue_command(self, kind: str, payload: Any) -> None:
+        """``queue_add|remove|move|start|abort|clear`` (:mod:`rigctl.runservice.queue`)."""
+        start = None
+        abort = False
+        with self._lock:
+            q = self._queue
+            try:
+                if kind == "queue_add":
+                    q.add(payload)
+                elif kind == "queue_remove":
+                    q.remove(int(payload))
+                elif kind == "queue_move":
+                    q.move(int(payload[0]), int(payload[1]))
+                elif kind == "queue_start":
+                    if self.state.busy:
+                        raise InputError("queue: a run is going; start the queue when it has ended")
+                    start = q.start()
+                elif kind == "queue_abort":
+                    abort = q.abort(str(payload or "aborted by the operator"))
+                elif kind == "queue_clear":
+                    q.clear()
+                else:
+                    raise InputError(f"unknown queue command {kind!r}")
+                problem = None
+            except (InputError, TypeError, ValueError) as exc:
+                problem = str(exc)
+            self.state.queue = q.state()
+        if problem is not None:
+            self._log("warning", problem)
+        elif kind in ("queue_start", "queue_abort") and self.state.queue.message:
+            self._log("info" if kind == "queue_start" else "warning", self.state.queue.message)
+        self._broadcast("queue", self.state.queue)
+        if abort:
+            self.abort(str(payload or "aborted by the operator") + " (queue aborted)")
+        if start is not None:
+            self.start(start)
+
+    def _queue_finished(self, job: JobSpec, result: RunResult) -> None:
+        """A queued run ended: record its status, start the next item or say why the queue stopped."""
+        if job.queue_item is None:
+            return
+        status = str(result.outcome.status) if result.kind == "run" and result.outcome is not None \
+            else result.kind
+        message = "" if status == "completed" else (
+            result.outcome.error or "" if result.kind == "run" and result.outcome is not None
+            else result.message)
+        with self._lock:
+            was_running = self._queue.running
+            nxt = None if self._stop.is_set() else self._queue.finished(job.queue_item, status,
+                                                                         message or "")
+            if self._stop.is_set():
+                self._queue.abort("run service stopped")
+            self.state.queue = self._queue.state()
+        self._broadcast("queue", self.state.queue)
+        if was_running and not self._queue.running:
+            self._log("info" if status == "completed" else "warning", self.state.queue.message)
+        if nxt is not None:
+            self.start(nxt)
 
     def abort(self, reason: str) -> None:
         if self._controls is not None and self.state.busy:
@@ -341,8 +407,11 @@ class RunService:
                 self._controls = Controls()
         if busy:
             self._log("warning", link_msg)
+            if job.queue_item is not None:
+                self._queue_finished(job, RunResult("error", link_msg))
             return
         self._broadcast("state", self.state)
+        self._broadcast("started", job)
         self._thread = threading.Thread(target=self._work, args=(job,), name="runservice-run",
                                         daemon=False)
         self._thread.start()
@@ -355,7 +424,8 @@ class RunService:
             try:
                 plan, _ = runner.plan()
             except PlanError as exc:
-                result = RunResult("refused", f"dry run refused: {exc}")
+                result = RunResult("refused", f"dry run refused: {exc}",
+                                   culprits=self._culprits(runner, str(exc)))
                 return
             self.state.plan = plan
             self._broadcast("planned", plan)
@@ -376,6 +446,14 @@ class RunService:
             if result.kind == "run" and result.outcome is not None:
                 self._log("info", f"run {result.outcome.status}: {result.outcome.path}")
             self._broadcast("done", result)
+            self._queue_finished(job, result)
+
+    def _culprits(self, runner: Runner, refusal: str) -> tuple[str, ...]:
+        try:
+            x0 = runner.devices.tangential_stage.position_m()
+            return refusal_culprits(runner.protocol, runner.params, runner.limits, x0, refusal)
+        except Exception:  # the attribution is a help; the refusal itself stands
+            return ()
 
     def _build(self, job: JobSpec) -> Runner:
         rig = self.rig

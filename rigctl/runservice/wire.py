@@ -5,12 +5,16 @@ pickles, HMAC challenge with a per-service key stored next to the socket with mo
 user who started it can connect). Messages are tuples ``(kind, payload)``.
 
 Client to service: ``("start", JobSpec)``, ``("pause", None)``, ``("resume", None)``,
-``("abort", reason)``, ``("estop", reason)``, ``("shutdown", None)``.
+``("abort", reason)``, ``("estop", reason)``, ``("shutdown", None)``; the queue
+(:mod:`rigctl.runservice.queue`): ``("queue_add", JobSpec)``, ``("queue_remove", item)``,
+``("queue_move", (item, +1 or -1))``, ``("queue_start", None)``, ``("queue_abort", reason)``,
+``("queue_clear", None)`` (pause and resume of the queue are ``pause``/``resume`` of its current run).
 Service to client: ``("hello", ServiceState)``, ``("planned", Plan)``, ``("progress", (i, n, step,
 elapsed, eta, device_t))``, ``("daq", columns)``, ``("frame", LiveFrame)`` (a downsampled camera
 image a few times a second with every frame's Isum, :mod:`rigctl.runservice.frames`), ``("done",
 RunResult)``, ``("log", (level, text))`` (the service's own lines, the run's warnings, pause/resume and
-dropped data), ``("state", ServiceState)``.
+dropped data), ``("state", ServiceState)``, ``("started", JobSpec)`` (a run begins: the window sets
+up its display even when the queue, not the window, started it), ``("queue", QueueState)``.
 """
 
 from __future__ import annotations
@@ -86,6 +90,8 @@ class JobSpec:
     notes: str = ""
     speed_text: str = "1"
     started_from: str = "gui"
+    queue_item: int | None = None
+    """The queue item this run is (None for a run started on its own)."""
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,8 @@ class RunResult:
     message: str = ""
     outcome: Any = None
     """experiments.runner.RunOutcome for kind 'run'."""
+    culprits: tuple[str, ...] = ()
+    """For kind 'refused': the edited parameters whose default value would pass the plan."""
 
 
 @dataclass
@@ -110,3 +118,5 @@ class ServiceState:
     run_path: str | None = None
     paused: bool = False
     log: list[tuple[str, str]] = field(default_factory=list)
+    queue: Any = None
+    """rigctl.runservice.queue.QueueState: the queued runs and their status."""
