@@ -64,7 +64,7 @@ def _repeat_rows(qs: Sequence[Repeated]) -> list[dict[str, str]]:
             detail = "R^2 " + ", ".join(fmt(v, 4) for v in q.extra["r2"]) + "; off the line by " \
                 + ", ".join(fmt(100 * v, 3) for v in q.extra.get("fit_error", [])) + " % at most"
         rows.append({"name": q.name + (f" [{q.unit}]" if q.unit else ""),
-                     "values": ", ".join(fmt(v) for v in q.values),
+                     "per": ", ".join(fmt(v) for v in q.values),
                      "error": fmt(100 * q.relative_error, 3) + " %", "detail": detail})
     return rows
 

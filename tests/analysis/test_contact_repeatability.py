@@ -100,5 +100,7 @@ def test_a_tlre_run_has_max_ft_max_isum_and_the_fit_per_pass(tmp_path: Path) -> 
     index, js = write_report(analyse_campaign([path]), tmp_path / "rep")
     html = index.read_text()
     assert "max Isum [grey levels]" in html and f"{SLOPE} [grey levels/N]" in html
+    assert "built-in method" not in html  # the values themselves, not a dict's method
+    assert ", ".join(f"{v:.4g}" for v in rep["max Isum"].values) in html
     names = [q["name"] for q in json.loads(js.read_text())["runs"][0]["repeatability"]]
     assert names == ["max Ft", "max Isum", SLOPE]
