@@ -1,9 +1,9 @@
 """Contact images: the intensity pass against a plain h5py read of the same frames, and its memory.
 
-A synthetic run file (``--frames`` frames of 640 x 480 at 60 Hz, the camera's LZF compression as
-the run writer stores them) is written once: 24 contact images rendered by the simulated camera's
-renderer at loads 0-300 N, cycled, each with fresh read noise so that the compression sees what a
-real recording gives. Then, in one run, side by side:
+A synthetic run file (``--frames`` frames of 640 x 480 at 60 Hz, stored by the run writer with the
+camera's compression, ``--compression``, by default the layout's) is written once: 24 contact
+images rendered by the simulated camera's renderer at loads 0-300 N, cycled, each with fresh read
+noise so that the compression sees what a real recording gives. Then, in one run, side by side:
 
 * **read**: ``h5py`` reads every frame of the file, chunk by chunk (the same chunk size), and does
   nothing with them: what reading costs (decompression included).
@@ -16,7 +16,8 @@ real recording gives. Then, in one run, side by side:
 Reads and passes alternate ``--repeat`` times (best of each), so both see the same load and page
 cache. ``--profile`` prints cProfile's top entries of one intensity pass.
 
-``python -m benchmarks.bench_contact [--frames N] [--repeat R] [--profile] [--json] [--keep FILE]``.
+``python -m benchmarks.bench_contact [--frames N] [--compression gzip|lzf|none] [--repeat R]
+[--profile] [--json] [--keep FILE]``.
 Figures go into docs/performance.md (Contact images).
 """
 
@@ -45,7 +46,14 @@ from rigctl.analysis.contact_intensity import (
     stream_intensity,
 )
 from rigctl.storage import RunWriter
-from rigctl.storage.layout import CAMERA, CameraLayout, DaqLayout, RunDescription
+from rigctl.storage.layout import (
+    CAMERA,
+    FRAME_COMPRESSIONS,
+    CameraLayout,
+    DaqLayout,
+    FrameCompression,
+    RunDescription,
+)
 from rigctl.storage.reader import RunReader
 
 H, W = 480, 640
@@ -56,6 +64,7 @@ MEMORY_CHUNKS_MB = (2, 8, 32, 128)
 @dataclass
 class Report:
     frames: int = 0
+    compression: str = ""
     height_px: int = H
     width_px: int = W
     file_mb: float = 0.0
@@ -75,7 +84,7 @@ class Report:
     load_average: float = 0.0
 
 
-def write_file(path: Path, n: int, seed: int = 0) -> float:
+def write_file(path: Path, n: int, compression: FrameCompression, seed: int = 0) -> float:
     """The synthetic run file; returns the seconds it took."""
     from sim_devices.contact_image import CameraOptics, ContactImageRenderer
 
@@ -90,7 +99,7 @@ def write_file(path: Path, n: int, seed: int = 0) -> float:
     cols = {"t_s": t, "x_stage_m": np.zeros_like(t), "fn_N": np.full_like(t, 300.0),
             "ft_N": np.zeros_like(t), "d1_m": np.zeros_like(t), "d2_m": np.zeros_like(t)}
     daq = DaqLayout(channels=tuple(k for k in cols if k != "t_s"))
-    cam = CameraLayout(height_px=H, width_px=W, frame_rate_hz=RATE_HZ)
+    cam = CameraLayout(height_px=H, width_px=W, frame_rate_hz=RATE_HZ, compression=compression)
     noise = rng.normal(0.0, 1.2, size=(8, H, W)).astype(np.float32)
     with RunWriter(path, RunDescription(protocol="bench"), daq, cam, min_free_bytes=0) as w:
         w.append_daq(cols)
@@ -161,12 +170,15 @@ def profile(path: Path, region: ContactRegion, top: int = 14) -> str:
     return s.getvalue()
 
 
-def run(n: int, repeat: int, keep: Path | None = None, show_profile: bool = False) -> Report:
-    rep = Report(frames=n, load_average=os.getloadavg()[0])
+def run(n: int, repeat: int, compression: FrameCompression, keep: Path | None = None,
+        show_profile: bool = False) -> Report:
+    rep = Report(frames=n, compression=compression, load_average=os.getloadavg()[0])
     with tempfile.TemporaryDirectory() as tmp:
         path = keep or Path(tmp) / "bench_contact.h5"
         if not path.exists():
-            rep.write_s = write_file(path, n)
+            rep.write_s = write_file(path, n, compression)
+        with h5py.File(path, "r") as f:
+            rep.compression = str(f[CAMERA]["frames"].compression or "none")
         rep.file_mb = path.stat().st_size / 2**20
         rep.pixels_mb = n * H * W / 2**20
         step = chunk_frames(H, W, DEFAULT_CHUNK_BYTES)
@@ -196,16 +208,18 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.bench_contact")
     p.add_argument("--frames", type=int, default=3000)
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--compression", choices=FRAME_COMPRESSIONS,
+                   default=CameraLayout(1, 1).compression)
     p.add_argument("--profile", action="store_true", help="cProfile of one intensity pass")
     p.add_argument("--json", action="store_true")
     p.add_argument("--keep", type=Path, help="write (or reuse) the run file here")
     args = p.parse_args(argv)
-    rep = run(args.frames, args.repeat, args.keep, args.profile)
+    rep = run(args.frames, args.repeat, args.compression, args.keep, args.profile)
     if args.json:
         print(json.dumps(asdict(rep), indent=1))
         return 0
     print(f"{rep.frames} frames of {W} x {H} px: {rep.pixels_mb:.0f} MB of pixels, "
-          f"{rep.file_mb:.0f} MB on disk (LZF); chunks of {rep.chunk_frames} frames")
+          f"{rep.file_mb:.0f} MB on disk ({rep.compression}); chunks of {rep.chunk_frames} frames")
     print(f"plain h5py read   {rep.read_fps:8.0f} frames/s")
     print(f"intensity pass    {rep.intensity_fps:8.0f} frames/s  "
           f"({rep.intensity_over_read:.2f} x the read time)")
