@@ -17,7 +17,7 @@ Reads and passes alternate ``--repeat`` times (best of each), so both see the sa
 cache. ``--profile`` prints cProfile's top entries of one intensity pass.
 
 ``python -m benchmarks.bench_contact [--frames N] [--compression gzip|lzf|none] [--repeat R]
-[--profile] [--json] [--keep FILE]``.
+[--profile] [--json] [--keep FILE] [--quick]``; ``--quick``: 300 frames, once.
 Figures go into docs/performance.md (Contact images).
 """
 
@@ -213,8 +213,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--profile", action="store_true", help="cProfile of one intensity pass")
     p.add_argument("--json", action="store_true")
     p.add_argument("--keep", type=Path, help="write (or reuse) the run file here")
-    args = p.parse_args(argv)
-    rep = run(args.frames, args.repeat, args.compression, args.keep, args.profile)
+    p.add_argument("--quick", action="store_true", help="300 frames, one repeat (a smoke run)")
+    args, _ = p.parse_known_args(sys.argv[1:] if argv is None else argv)  # run_all's flags too
+    n, repeat = (300, 1) if args.quick else (args.frames, args.repeat)
+    rep = run(n, repeat, args.compression, args.keep, args.profile)
     if args.json:
         print(json.dumps(asdict(rep), indent=1))
         return 0
