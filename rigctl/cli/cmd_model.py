@@ -139,8 +139,10 @@ def run_compare(args: argparse.Namespace) -> int:
 def _print_compare(cmp: Any) -> None:
     from rigctl.workbench.feature_info import FEATURES
 
+    n_model = sum(m.n for m in cmp.evaluation.events)
     print(f"model {cmp.fit.choice.label()}: error {cmp.fit.error:.3g} "
-          f"({cmp.dataset.n_events} slip events in {len(cmp.dataset.runs)} run(s))")
+          f"({cmp.dataset.n_events} slip events in {len(cmp.dataset.runs)} run(s); "
+          f"the model makes {n_model})")
     for note in cmp.dataset.notes:
         print(f"note: {note}")
     print("\nper-feature error (z: in units of the measured scatter; RMS/mean: model - measured)")

@@ -25,7 +25,13 @@ from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.evaluate import evaluate, simulate_run
 from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.fitting import CandidateTask, fit_candidate, identify_model
-from rigctl.workbench.identify import FitResult, fit, fn_range, free_params, physically_valid
+from rigctl.workbench.identify import (
+    FitResult,
+    fn_range,
+    free_params,
+    least_squares_fit,
+    physically_valid,
+)
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 from rigctl.workbench.ranking import (
@@ -151,7 +157,7 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
 def refine(dataset: Dataset, result: FitResult) -> FitResult:
     """Re-identify a chosen model with a fresh Jacobian (for uncertainties and the next round)."""
     free = free_params(result.choice, list(result.free))
-    return fit(dataset, result.choice, free, max_nfev=8, with_uncertainty=True)
+    return least_squares_fit(dataset, result.choice, free, max_nfev=8, with_uncertainty=True)
 
 
 def cost_order(

@@ -44,9 +44,11 @@ from rigctl.workbench.identify import (
     FreeParam,
     HybridJacobian,
     Objective,
-    fit,
+    broyden_update,
     fn_range,
     free_params,
+    least_squares_fit,
+    misses_most_slips,
     physically_valid,
 )
 from rigctl.workbench.model_choice import ModelChoice, effect_class
@@ -131,7 +133,7 @@ def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[
         guess = {}
     if guess and _error_or_inf(dataset, best_choice.with_values(guess), fns) <= e_best:
         start = guess
-    return fit(dataset, best_choice, free, start=start, max_nfev=max_nfev,
+    return least_squares_fit(dataset, best_choice, free, start=start, max_nfev=max_nfev,
                with_uncertainty=with_uncertainty)
 
 
@@ -161,24 +163,16 @@ def _scan_mass(dataset: Dataset, choice: ModelChoice, e_now: float, fns: tuple[f
     return best, e_best
 
 
-MAX_MISSING_AT_START = 0.5
-"""A start (or scanned point) whose model misses more than this fraction of the measured slips is
-no start: each missing slip costs a fixed z, so a model that makes no slips scores a flat error
-(about 11) that no small step changes - a trap the fit cannot leave, which a model making wrong
-slips (scoring worse, but with a gradient) is not."""
-
-
 def _error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:
     """The event-aware error of ``choice`` as a start; inf when it is not valid, cannot be run, or
-    misses most of the measured slips (:data:`MAX_MISSING_AT_START`)."""
+    misses most of the measured slips (:func:`~rigctl.workbench.identify.misses_most_slips`)."""
     if not physically_valid(choice, fns):
         return float("inf")
     try:
         score = evaluate(dataset, choice).score
     except SimulationError:
         return float("inf")
-    missing = sum(int(np.count_nonzero(c.missing["drop_N"])) for c in score.comparisons)
-    if missing > MAX_MISSING_AT_START * max(dataset.n_events, 1):
+    if misses_most_slips(dataset, score.comparisons):
         return float("inf")
     return float(score.error)
 
@@ -333,10 +327,7 @@ def _gauss_newton_base(
         cost = float(vec @ vec)
         if cost < best[0]:
             best = (cost, values)
-        du = u_new - u
-        nrm = float(du @ du)
-        if nrm > 0:
-            J = J + np.outer(vec - vec_prev - J @ du, du) / nrm
+        J = broyden_update(J, u_new - u, vec - vec_prev)
         u, vec_prev = u_new, vec
         step, *_ = np.linalg.lstsq(J, -vec, rcond=1e-8)
     return best
@@ -454,7 +445,7 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
     if J_on is not None:
         init = np.hstack([J_on, np.zeros((J_on.shape[0], len(eff_free)))])
     fits = [
-        fit(dataset, choice, free, start=start, fresh_columns=fresh, initial_jacobian=init,
+        least_squares_fit(dataset, choice, free, start=start, fresh_columns=fresh, initial_jacobian=init,
             max_nfev=CANDIDATE_MAX_NFEV, with_uncertainty=with_uncertainty)
         for _, start in starts
     ]

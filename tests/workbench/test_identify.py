@@ -8,7 +8,7 @@ from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import identify_model
-from rigctl.workbench.identify import fit, free_params
+from rigctl.workbench.identify import free_params, least_squares_fit
 from rigctl.workbench.model_choice import ModelChoice
 
 TRUTH = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,
@@ -35,6 +35,6 @@ def test_a_parameter_without_influence_on_the_data_is_flagged(tlre):
     choice = base.choice.with_effect("contact_degradation").with_values(
         {"contact_degradation.amplitude": 0.0})
     free = free_params(choice, ["mu_s", "contact_degradation.n_cycles"])
-    res = fit(tlre, choice, free, max_nfev=4, with_uncertainty=True)
+    res = least_squares_fit(tlre, choice, free, max_nfev=4, with_uncertainty=True)
     assert "contact_degradation.n_cycles" in res.undetermined
     assert "mu_s" not in res.undetermined
