@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class FeatureInfo:
+    """One compared feature. The order of :data:`FEATURES` is the order of the residual vector."""
+
     name: str
     unit: str
     log: bool
@@ -19,27 +21,47 @@ class FeatureInfo:
     """Depends on where the samples fall within a sub-millisecond slip: its scatter is the total
     spread of the measured values, not the successive-difference one (two records a fraction of a
     sample apart in slip timing give unrelated values)."""
+    per_event: bool = True
+    """Read once per stick-slip cycle (an :class:`~rigctl.workbench.features.EventTable` column);
+    False for the initial-stage curve, read once per run."""
+    from_slope: bool = False
+    """Read from a fitted slope, whose per-event standard error the event table keeps."""
 
 
 FEATURES: dict[str, FeatureInfo] = {
     f.name: f
     for f in (
-        FeatureInfo("peak_N", "N", False, "peaks", "drop"),
-        FeatureInfo("trough_N", "N", False, "troughs (settled post-slip levels)", "drop"),
-        FeatureInfo("drop_N", "N", False, "stress drops", "drop"),
-        FeatureInfo("stick_s", "s", True, "stick durations (recurrence)", "relative"),
-        FeatureInfo("rate_N_per_s", "N/s", True, "stick loading rates", "relative"),
-        FeatureInfo("k_stick_N_per_m", "N/m", True, "stick stiffnesses K(i)", "relative"),
-        FeatureInfo("rounding", "-", False, "stick-ramp end slopes (rounding before the peak)",
-                    "unit"),
-        FeatureInfo("ring_N", "N", False, "post-slip ringing amplitudes", "drop", True),
-        FeatureInfo("step_frac", "-", False, "drop sharpnesses", "unit", True),
-        FeatureInfo("slip_m", "m", False, "slip distances", "slip"),
-        FeatureInfo("fn_swing_N", "N", False, "normal-force swings at slips", "drop"),
-        FeatureInfo("lag_m", "m", False, "probe readings delta relative to the stage (lag)", "slip"),
-        FeatureInfo("init_k_N_per_m", "N/m", True, "initial-stage stiffnesses", "relative"),
+        FeatureInfo("peak_N", "N", log=False, phrase="peaks", floor_kind="drop"),
+        FeatureInfo("trough_N", "N", log=False, phrase="troughs (settled post-slip levels)",
+                    floor_kind="drop"),
+        FeatureInfo("drop_N", "N", log=False, phrase="stress drops", floor_kind="drop"),
+        FeatureInfo("stick_s", "s", log=True, phrase="stick durations (recurrence)",
+                    floor_kind="relative"),
+        FeatureInfo("rate_N_per_s", "N/s", log=True, phrase="stick loading rates",
+                    floor_kind="relative", from_slope=True),
+        FeatureInfo("k_stick_N_per_m", "N/m", log=True, phrase="stick stiffnesses K(i)",
+                    floor_kind="relative", from_slope=True),
+        FeatureInfo("rounding", "-", log=False,
+                    phrase="stick-ramp end slopes (rounding before the peak)", floor_kind="unit",
+                    from_slope=True),
+        FeatureInfo("ring_N", "N", log=False, phrase="post-slip ringing amplitudes",
+                    floor_kind="drop", phase_sensitive=True),
+        FeatureInfo("step_frac", "-", log=False, phrase="drop sharpnesses", floor_kind="unit",
+                    phase_sensitive=True),
+        FeatureInfo("slip_m", "m", log=False, phrase="slip distances", floor_kind="slip"),
+        FeatureInfo("fn_swing_N", "N", log=False, phrase="normal-force swings at slips",
+                    floor_kind="drop"),
+        FeatureInfo("lag_m", "m", log=False,
+                    phrase="probe readings delta relative to the stage (lag)", floor_kind="slip"),
+        FeatureInfo("init_k_N_per_m", "N/m", log=True, phrase="initial-stage stiffnesses",
+                    floor_kind="relative", per_event=False),
     )
 }
+
+EVENT_FEATURES: tuple[str, ...] = tuple(n for n, f in FEATURES.items() if f.per_event)
+"""The per-cycle features, in the order of the residual vector."""
+SE_FEATURES: tuple[str, ...] = tuple(n for n, f in FEATURES.items() if f.from_slope)
+"""Features read from a fitted slope, whose per-event standard error the event table keeps."""
 
 FLOOR_FRACTION = 0.005
 """Scatter floor: 0.5 % of the feature's scale, so noise-free data do not get infinite weight."""

@@ -43,6 +43,7 @@ import numpy as np
 
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings, SlipIndices, detect_slips
+from rigctl.workbench.feature_info import EVENT_FEATURES, SE_FEATURES
 from rigctl.workbench.signals import (
     FloatArray,
     line_fit,
@@ -51,10 +52,6 @@ from rigctl.workbench.signals import (
     slope_se,
 )
 
-EVENT_FEATURES: tuple[str, ...] = (
-    "peak_N", "trough_N", "drop_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding",
-    "ring_N", "step_frac", "slip_m", "fn_swing_N", "lag_m",
-)
 COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
     "dft_dt_N_per_s",
@@ -62,8 +59,6 @@ COVARIATES: tuple[str, ...] = (
 MAX_ATTENUATION = 0.1
 """K(i) is read only where the force noise attenuates the fitted compliance by at most 10 % before
 correction (the force range of the window at least about 11 noise RMS)."""
-SE_FEATURES: tuple[str, ...] = ("rate_N_per_s", "rounding", "k_stick_N_per_m")
-"""Features read from a fitted slope, whose per-event standard error :class:`EventTable` keeps."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
 
 
@@ -153,140 +148,38 @@ def extract_events(
 
     ``delta_valid`` (per sample, :mod:`rigctl.workbench.probe_range`): where False a probe was over
     range, and the delta features whose windows include such samples are left NaN (not compared).
+
+    Steps: detect the slips; refine their drop times; per slip, its stick window
+    (:func:`_cycle_window`), the levels at the drop (:func:`_levels_at_drop`), the loading ramp
+    (:func:`_loading_ramp`), the drop's shape (:func:`_drop_shape`) and its covariates; then the
+    run-wide covariates, the load-change slips left out (:func:`_leave_out_load_changes`) and the
+    initial-stage curve.
     """
     t = t_s - t_s[0]
     if slips is None:
         slips = detect_slips(t, ft_N, delta_m, settings.detection, delta_valid,
                              v_drive_m_s=drive.sliding_velocity_at(t), fn_N=fn_N)
-
-    def d_ok(i0: int, i1: int) -> bool:
-        return delta_valid is None or bool(delta_valid[max(i0, 0) : max(i1, 0)].all())
+    rec = _Record(t, ft_N, delta_m, fn_N, drive, settings, delta_valid)
     n_ev = slips.n
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    n = t.shape[0]
-    settle = settings.settle_s
-    sigma_f = noise_sigma(ft_N)
-    t_motion = drive.motion_start_s()
-
-    # drop times, refined between samples
-    t_drop = np.empty(n_ev)
-    size0 = np.empty(n_ev)
-    for j in range(n_ev):
-        i_pk, i_end, s = int(slips.i_peak[j]), int(slips.i_end[j]), int(slips.sign[j])
-        size0[j] = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
-        t_drop[j] = _drop_time(t, ft_N, i_pk, i_end, ft_N[i_pk] - s * 0.5 * size0[j], s)
-
+    t_drop = _drop_times(rec, slips)
     feats = {name: np.full(n_ev, np.nan) for name in EVENT_FEATURES}
     se = {name: np.full(n_ev, np.nan) for name in SE_FEATURES}
-    sigma_d = noise_sigma(delta_m)
     cov = {name: np.full(n_ev, np.nan) for name in COVARIATES}
     stage = np.ones(n_ev, dtype=np.int8)
     segment = drive.segment_index(t_drop) if n_ev else np.zeros(0, np.intp)
-
-    def idx(time: float) -> int:
-        return int(np.searchsorted(t, time))
-
-    t_run_end = float(t[-1])
-    x_drive = drive.x_at(t)
     # the last slip's settled level needs at least half a typical cycle of record after it
     min_tail = 0.5 * float(np.median(np.diff(t_drop))) if n_ev >= 3 else 0.3
     for j in range(n_ev):
-        td = float(t_drop[j])
-        s = int(slips.sign[j])
-        i_pk = int(slips.i_peak[j])
-        prev_td = float(t_drop[j - 1]) if j > 0 else t_motion
-        a = prev_td + settle if j > 0 else t_motion
-        a_load = max(a, drive.last_change_before(td))
-        length = td - a_load
-        nxt = float(t_drop[j + 1]) if j + 1 < n_ev else t_run_end
-        after_len = min(0.4 * (nxt - td - settle), 1.0)
-        if j + 1 == n_ev and nxt - td - settle < min_tail:
-            after_len = 0.0  # the record ends before the stick after the last slip is seen
-
-        # levels at the drop: pre-drop ramp and settled post-slip line
-        pre_len = min(0.15 * length, 0.3) if length > 0 else 0.0
-        i_pre0, i_pre1 = idx(td - max(pre_len, 8 * dt)), i_pk + 1
-        i_post0, i_post1 = idx(td + settle), idx(td + settle + after_len)
-        # the settled post-slip line is read against the stage position when the stage changes
-        # velocity inside the window (stick loading is linear in stage travel, not in time), and
-        # up to the change when it stops or reverses there: a line in time across a velocity step
-        # would bend the extrapolated trough by where in the cycle the step fell
-        # the stage from the simplified drive (the encoder's quantisation steps would otherwise
-        # show as a slow sawtooth in the lag)
-        xs_td = float(drive.x_at(np.array([td]))[0])
-        post_axis, post_at = t, td
-        k_td = int(drive.segment_index(np.array([td]))[0])
-        if i_post1 > i_post0 and int(drive.segment_index(t[i_post1 - 1 : i_post1])[0]) != k_td:
-            if drive.steady_slide_between(td, float(t[i_post1 - 1])):
-                post_axis, post_at = x_drive, xs_td
-            else:
-                i_post1 = min(i_post1, idx(drive.phase_end(td)))
-        peak, _ = line_fit(t, ft_N, i_pre0, i_pre1, td)
-        trough, slope_after = line_fit(post_axis, ft_N, i_post0, i_post1, post_at)
-        d_pk, _ = line_fit(t, delta_m, i_pre0, i_pre1, td)
-        d_after, _ = line_fit(post_axis, delta_m, i_post0, i_post1, post_at)
-        fn_pk, _ = line_fit(t, fn_N, i_pre0, i_pre1, td)
-        fn_after, _ = line_fit(post_axis, fn_N, i_post0, i_post1, post_at)
-        feats["peak_N"][j] = peak
-        feats["trough_N"][j] = trough
-        feats["drop_N"][j] = s * (peak - trough)
-        feats["stick_s"][j] = _stick_duration(drive, prev_td, td)
-        if d_ok(i_pre0, i_pre1) and d_ok(i_post0, i_post1):
-            feats["slip_m"][j] = s * (d_after - d_pk)
-        feats["fn_swing_N"][j] = fn_pk - fn_after
-        if d_ok(i_pre0, i_pre1):
-            feats["lag_m"][j] = xs_td - d_pk
-
-        # loading ramp: early slope, K(i), rounding
-        if length > 20 * dt:
-            i_e0, i_e1 = idx(a_load + 0.1 * length), idx(a_load + 0.6 * length)
-            i_n0 = idx(td - 0.15 * length)
-            _, rate = line_fit(t, ft_N, i_e0, i_e1, td)
-            _, rate_end = line_fit(t, ft_N, i_n0, i_pk + 1, td)
-            feats["rate_N_per_s"][j] = s * rate
-            se_rate = slope_se(t[i_e0:i_e1], sigma_f)
-            se_end = slope_se(t[i_n0 : i_pk + 1], sigma_f)
-            if rate != 0.0 and np.isfinite(rate):
-                feats["rounding"][j] = rate_end / rate
-                se["rate_N_per_s"][j] = se_rate / abs(rate)
-                se["rounding"][j] = math.hypot(se_end, abs(rate_end) * se_rate / abs(rate)) \
-                    / abs(rate)
-            f_seg = ft_N[i_e0:i_e1]
-            # Ft is noisy too: the least-squares slope of delta on Ft is attenuated by the
-            # reliability ratio 1 - sigma_f^2 / var(Ft) (errors in variables; Fuller, Measurement
-            # Error Models, 1987, Sec. 1.1). The noise-free model's is not, so a short window
-            # (a stick cut short by a velocity step) would read stiffer than the model: correct
-            # for it, and only where it is under MAX_ATTENUATION
-            var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
-            reliability = 1.0 - sigma_f**2 / var_f if var_f > 0.0 else 0.0
-            if f_seg.size > 3 and reliability >= 1.0 - MAX_ATTENUATION and d_ok(i_e0, i_e1):
-                compliance = regress_slope(f_seg, delta_m[i_e0:i_e1]) / reliability
-                if np.isfinite(compliance) and compliance > 0.0:
-                    feats["k_stick_N_per_m"][j] = 1.0 / compliance
-                    se["k_stick_N_per_m"][j] = slope_se(f_seg, sigma_d) / compliance
-
-        # the drop itself: ringing about the settled line and sharpness
-        if np.isfinite(trough) and np.isfinite(feats["drop_N"][j]) and feats["drop_N"][j] > 0:
-            i_r0, i_r1 = idx(td + dt), idx(td + settle)
-            if i_r1 - i_r0 >= 4 and np.isfinite(slope_after):
-                tr = t[i_r0:i_r1]
-                dev = ft_N[i_r0:i_r1] - (trough + slope_after * (post_axis[i_r0:i_r1] - post_at))
-                # weights ramp up over one sample from td + 1.5 dt, so the window start moves
-                # continuously with the drop time instead of jumping a whole sample
-                wgt = np.clip((tr - td - 1.5 * dt) / dt, 0.0, 1.0)
-                ms = float(wgt @ dev**2) / max(float(wgt.sum()), 1e-12)
-                feats["ring_N"][j] = float(np.sqrt(max(ms - sigma_f**2, 0.0)))
-            w = max(2, round(settings.detection.drop_window_s / dt))
-            falls = s * (ft_N[i_pk : min(i_pk + w, n - 1)] - ft_N[i_pk + 1 : min(i_pk + w + 1, n)])
-            if falls.size:
-                feats["step_frac"][j] = float(np.max(falls)) / feats["drop_N"][j]
-
-        cov["t_s"][j] = td
+        cyc = _cycle_window(rec, slips, t_drop, j, min_tail)
+        lv = _levels_at_drop(rec, cyc, j, feats)
+        _loading_ramp(rec, cyc, j, feats, se)
+        _drop_shape(rec, cyc, lv, j, feats)
+        cov["t_s"][j] = cyc.td
         cov["cycle"][j] = j
-        cov["fn_N"][j] = fn_pk
-        cov["hold_s"][j] = drive.hold_time_between(prev_td, td)
-        cov["stick_time_s"][j] = td - prev_td
-        cov["ft_N"][j] = peak
+        cov["fn_N"][j] = lv.fn_pk
+        cov["hold_s"][j] = drive.hold_time_between(cyc.prev_td, cyc.td)
+        cov["stick_time_s"][j] = cyc.td - cyc.prev_td
+        cov["ft_N"][j] = lv.peak
         cov["dft_dt_N_per_s"][j] = feats["rate_N_per_s"][j]
     if n_ev:
         cov["v_drive_m_per_s"] = np.abs(drive.velocity_at(t_drop))
@@ -295,26 +188,209 @@ def extract_events(
         finite = np.isfinite(feats["lag_m"])
         if finite.any():
             feats["lag_m"] = feats["lag_m"] - float(np.median(feats["lag_m"][finite]))
-
-    if n_ev:
-        # slips set off by a change of the normal load (a release under tangential load, a
-        # re-loading) are not stick-slip cycles: they are paired, but not compared
-        fn_a = drive.fn_at(np.clip(t_drop - LOAD_CHANGE_WINDOW_S, 0.0, None))
-        fn_b = drive.fn_at(t_drop + LOAD_CHANGE_WINDOW_S)
-        changing = np.abs(fn_b - fn_a) > LOAD_CHANGE_FRACTION * np.maximum(fn_a, fn_b)
-        for name in feats:
-            feats[name][changing] = np.nan
+        _leave_out_load_changes(drive, t_drop, feats)
 
     init_k = np.full(len(INIT_BANDS), np.nan)
     if n_ev:
-        i_m = idx(t_motion)
+        i_m = rec.idx(rec.t_motion)
         f0 = float(np.median(ft_N[max(0, i_m - 20) : i_m + 1]))
         peak0 = float(feats["peak_N"][0])
         if np.isfinite(peak0) and abs(f0) < 0.1 * abs(peak0):
             stage[0] = 0
-            init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0, sigma_f,
-                                    delta_valid)
+            init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0,
+                                    rec.sigma_f, delta_valid)
     return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy(), se)
+
+
+class _Record:
+    """One record's signals and what every step of :func:`extract_events` reads from them (times
+    relative to the first sample)."""
+
+    def __init__(self, t: FloatArray, ft_N: FloatArray, delta_m: FloatArray, fn_N: FloatArray,
+                 drive: DriveProfile, settings: ReadSettings,
+                 delta_valid: np.ndarray | None) -> None:
+        self.t, self.ft_N, self.delta_m, self.fn_N = t, ft_N, delta_m, fn_N
+        self.drive, self.settings, self.delta_valid = drive, settings, delta_valid
+        self.dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        self.sigma_f = noise_sigma(ft_N)
+        self.sigma_d = noise_sigma(delta_m)
+        self.t_motion = drive.motion_start_s()
+        self.x_drive = drive.x_at(t)
+
+    def idx(self, time: float) -> int:
+        """Index of the first sample at or after ``time``."""
+        return int(np.searchsorted(self.t, time))
+
+    def d_ok(self, i0: int, i1: int) -> bool:
+        """Whether delta is within the probes' range over samples [i0, i1)."""
+        return self.delta_valid is None or bool(self.delta_valid[max(i0, 0) : max(i1, 0)].all())
+
+
+@dataclass(frozen=True)
+class _Cycle:
+    """One slip and the stick before it: the windows its features are read over."""
+
+    td: float
+    """Drop time."""
+    prev_td: float
+    """Previous drop (the start of motion for the first)."""
+    a_load: float
+    """Start of this stick's loading (after the settle time, not before the drive's last change)."""
+    length: float
+    """Loading time up to the drop."""
+    after_len: float
+    """Length of the settled post-slip window (0 when the record ends too soon after the slip)."""
+    i_pk: int
+    sign: int
+
+
+def _drop_times(rec: _Record, slips: SlipIndices) -> FloatArray:
+    """Each slip's drop time: where Ft crosses half-way down its fall, refined between samples."""
+    t_drop = np.empty(slips.n)
+    for j in range(slips.n):
+        i_pk, i_end, s = int(slips.i_peak[j]), int(slips.i_end[j]), int(slips.sign[j])
+        size0 = s * rec.ft_N[i_pk] - float(np.min(s * rec.ft_N[i_pk : i_end + 1]))
+        t_drop[j] = _drop_time(rec.t, rec.ft_N, i_pk, i_end, rec.ft_N[i_pk] - s * 0.5 * size0, s)
+    return t_drop
+
+
+def _cycle_window(rec: _Record, slips: SlipIndices, t_drop: FloatArray, j: int,
+                  min_tail: float) -> _Cycle:
+    """The stick before slip ``j`` and the post-slip window after it."""
+    settle = rec.settings.settle_s
+    td = float(t_drop[j])
+    prev_td = float(t_drop[j - 1]) if j > 0 else rec.t_motion
+    a = prev_td + settle if j > 0 else rec.t_motion
+    a_load = max(a, rec.drive.last_change_before(td))
+    n_ev = t_drop.shape[0]
+    nxt = float(t_drop[j + 1]) if j + 1 < n_ev else float(rec.t[-1])
+    after_len = min(0.4 * (nxt - td - settle), 1.0)
+    if j + 1 == n_ev and nxt - td - settle < min_tail:
+        after_len = 0.0  # the record ends before the stick after the last slip is seen
+    return _Cycle(td, prev_td, a_load, td - a_load, after_len, int(slips.i_peak[j]),
+                  int(slips.sign[j]))
+
+
+@dataclass(frozen=True)
+class _Levels:
+    """Levels at a drop and the settled post-slip line they were read from."""
+
+    peak: float
+    trough: float
+    slope_after: float
+    post_axis: FloatArray
+    """What the post-slip line is a line in: time, or the stage position across a velocity change."""
+    post_at: float
+    """The drop on ``post_axis``."""
+    fn_pk: float
+
+
+def _levels_at_drop(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray]) -> _Levels:
+    """Peak, trough, drop, stick duration, slip distance, normal-force swing and lag of slip ``j``:
+    line fits over the pre-drop ramp and the settled post-slip stick, evaluated at the drop."""
+    t, dt, drive, td = rec.t, rec.dt, rec.drive, cyc.td
+    settle = rec.settings.settle_s
+    pre_len = min(0.15 * cyc.length, 0.3) if cyc.length > 0 else 0.0
+    i_pre0, i_pre1 = rec.idx(td - max(pre_len, 8 * dt)), cyc.i_pk + 1
+    i_post0, i_post1 = rec.idx(td + settle), rec.idx(td + settle + cyc.after_len)
+    # the settled post-slip line is read against the stage position when the stage changes
+    # velocity inside the window (stick loading is linear in stage travel, not in time), and
+    # up to the change when it stops or reverses there: a line in time across a velocity step
+    # would bend the extrapolated trough by where in the cycle the step fell
+    # the stage from the simplified drive (the encoder's quantisation steps would otherwise
+    # show as a slow sawtooth in the lag)
+    xs_td = float(drive.x_at(np.array([td]))[0])
+    post_axis, post_at = t, td
+    k_td = int(drive.segment_index(np.array([td]))[0])
+    if i_post1 > i_post0 and int(drive.segment_index(t[i_post1 - 1 : i_post1])[0]) != k_td:
+        if drive.steady_slide_between(td, float(t[i_post1 - 1])):
+            post_axis, post_at = rec.x_drive, xs_td
+        else:
+            i_post1 = min(i_post1, rec.idx(drive.phase_end(td)))
+    peak, _ = line_fit(t, rec.ft_N, i_pre0, i_pre1, td)
+    trough, slope_after = line_fit(post_axis, rec.ft_N, i_post0, i_post1, post_at)
+    d_pk, _ = line_fit(t, rec.delta_m, i_pre0, i_pre1, td)
+    d_after, _ = line_fit(post_axis, rec.delta_m, i_post0, i_post1, post_at)
+    fn_pk, _ = line_fit(t, rec.fn_N, i_pre0, i_pre1, td)
+    fn_after, _ = line_fit(post_axis, rec.fn_N, i_post0, i_post1, post_at)
+    s = cyc.sign
+    feats["peak_N"][j] = peak
+    feats["trough_N"][j] = trough
+    feats["drop_N"][j] = s * (peak - trough)
+    feats["stick_s"][j] = _stick_duration(drive, cyc.prev_td, td)
+    if rec.d_ok(i_pre0, i_pre1) and rec.d_ok(i_post0, i_post1):
+        feats["slip_m"][j] = s * (d_after - d_pk)
+    feats["fn_swing_N"][j] = fn_pk - fn_after
+    if rec.d_ok(i_pre0, i_pre1):
+        feats["lag_m"][j] = xs_td - d_pk
+    return _Levels(peak, trough, slope_after, post_axis, post_at, fn_pk)
+
+
+def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray],
+                  se: dict[str, FloatArray]) -> None:
+    """Early loading rate, K(i) and rounding of the stick before slip ``j``, with their standard
+    errors (nothing for a stick shorter than 20 samples)."""
+    t, dt, length, td, s = rec.t, rec.dt, cyc.length, cyc.td, cyc.sign
+    if not length > 20 * dt:
+        return
+    i_e0, i_e1 = rec.idx(cyc.a_load + 0.1 * length), rec.idx(cyc.a_load + 0.6 * length)
+    i_n0 = rec.idx(td - 0.15 * length)
+    _, rate = line_fit(t, rec.ft_N, i_e0, i_e1, td)
+    _, rate_end = line_fit(t, rec.ft_N, i_n0, cyc.i_pk + 1, td)
+    feats["rate_N_per_s"][j] = s * rate
+    se_rate = slope_se(t[i_e0:i_e1], rec.sigma_f)
+    se_end = slope_se(t[i_n0 : cyc.i_pk + 1], rec.sigma_f)
+    if rate != 0.0 and np.isfinite(rate):
+        feats["rounding"][j] = rate_end / rate
+        se["rate_N_per_s"][j] = se_rate / abs(rate)
+        se["rounding"][j] = math.hypot(se_end, abs(rate_end) * se_rate / abs(rate)) / abs(rate)
+    f_seg = rec.ft_N[i_e0:i_e1]
+    # Ft is noisy too: the least-squares slope of delta on Ft is attenuated by the
+    # reliability ratio 1 - sigma_f^2 / var(Ft) (errors in variables; Fuller, Measurement
+    # Error Models, 1987, Sec. 1.1). The noise-free model's is not, so a short window
+    # (a stick cut short by a velocity step) would read stiffer than the model: correct
+    # for it, and only where it is under MAX_ATTENUATION
+    var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
+    reliability = 1.0 - rec.sigma_f**2 / var_f if var_f > 0.0 else 0.0
+    if f_seg.size > 3 and reliability >= 1.0 - MAX_ATTENUATION and rec.d_ok(i_e0, i_e1):
+        compliance = regress_slope(f_seg, rec.delta_m[i_e0:i_e1]) / reliability
+        if np.isfinite(compliance) and compliance > 0.0:
+            feats["k_stick_N_per_m"][j] = 1.0 / compliance
+            se["k_stick_N_per_m"][j] = slope_se(f_seg, rec.sigma_d) / compliance
+
+
+def _drop_shape(rec: _Record, cyc: _Cycle, lv: _Levels, j: int,
+                feats: dict[str, FloatArray]) -> None:
+    """Ringing about the settled line after slip ``j`` and the drop's sharpness."""
+    drop = feats["drop_N"][j]
+    if not (np.isfinite(lv.trough) and np.isfinite(drop) and drop > 0):
+        return
+    t, dt, td, ft = rec.t, rec.dt, cyc.td, rec.ft_N
+    i_r0, i_r1 = rec.idx(td + dt), rec.idx(td + rec.settings.settle_s)
+    if i_r1 - i_r0 >= 4 and np.isfinite(lv.slope_after):
+        tr = t[i_r0:i_r1]
+        dev = ft[i_r0:i_r1] - (lv.trough + lv.slope_after * (lv.post_axis[i_r0:i_r1] - lv.post_at))
+        # weights ramp up over one sample from td + 1.5 dt, so the window start moves
+        # continuously with the drop time instead of jumping a whole sample
+        wgt = np.clip((tr - td - 1.5 * dt) / dt, 0.0, 1.0)
+        ms = float(wgt @ dev**2) / max(float(wgt.sum()), 1e-12)
+        feats["ring_N"][j] = float(np.sqrt(max(ms - rec.sigma_f**2, 0.0)))
+    w = max(2, round(rec.settings.detection.drop_window_s / dt))
+    n, i_pk, s = t.shape[0], cyc.i_pk, cyc.sign
+    falls = s * (ft[i_pk : min(i_pk + w, n - 1)] - ft[i_pk + 1 : min(i_pk + w + 1, n)])
+    if falls.size:
+        feats["step_frac"][j] = float(np.max(falls)) / drop
+
+
+def _leave_out_load_changes(drive: DriveProfile, t_drop: FloatArray,
+                            feats: dict[str, FloatArray]) -> None:
+    """Slips set off by a change of the normal load (a release under tangential load, a
+    re-loading) are not stick-slip cycles: they are paired, but not compared (features NaN)."""
+    fn_a = drive.fn_at(np.clip(t_drop - LOAD_CHANGE_WINDOW_S, 0.0, None))
+    fn_b = drive.fn_at(t_drop + LOAD_CHANGE_WINDOW_S)
+    changing = np.abs(fn_b - fn_a) > LOAD_CHANGE_FRACTION * np.maximum(fn_a, fn_b)
+    for name in feats:
+        feats[name][changing] = np.nan
 
 
 def _initial_curve(
