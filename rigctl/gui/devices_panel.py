@@ -28,7 +28,8 @@ JogFn = Callable[[str, float, float], object]
 """jog(axis, delta_m, velocity_m_s)"""
 
 _RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
-_READINGS = (("ft_N", "Ft", "N", 1.0), ("fn_N", "Fn", "N", 1.0), ("d1_m", "d1", "um", 1e6),
+_READINGS = (("ft_N", "Ft", "N", 1.0), ("fn_N", "Fn", "N", 1.0), ("delta_m", "delta", "um", 1e6),
+             ("d1_m", "d1", "um", 1e6),
              ("d2_m", "d2", "um", 1e6), ("x_stage_m", "x stage", "um", 1e6),
              ("z_stage_m", "z stage", "um", 1e6))
 

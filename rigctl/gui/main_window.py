@@ -9,6 +9,8 @@ service the service does this. Errors and what the e-stop did go to the status b
 
 from __future__ import annotations
 
+import math
+
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import QMainWindow, QPushButton, QTabWidget, QVBoxLayout, QWidget
@@ -101,7 +103,13 @@ class MainWindow(QMainWindow):
     # a rig held by this window (tests, embedding): the Devices tab reads and jogs it directly
     def _local_snapshot(self) -> None:
         if self._rig is not None:
-            snap = snapshot(self._rig, busy=self.panel.busy)
+            # during a run the readings are the latest samples of the live data this window
+            # receives (in the run service, the service's acquisition gives them)
+            h = self.panel.live.history
+            readings = ({ch: h.latest(ch) for ch in ("ft_N", "fn_N", "delta_m")}
+                        if self.panel.busy and len(h) else {})
+            readings = {k: v for k, v in readings.items() if math.isfinite(v)}
+            snap = snapshot(self._rig, readings, busy=self.panel.busy)
             self.devices.show_snapshot(snap)
             self.live_view.show_devices(snap)
 

@@ -82,3 +82,22 @@ def test_after_an_estop_jogs_are_refused_until_reset(qtbot, window, rig):
     box.speed_um_s.setValue(50.0)
     box.plus.click()  # the stage's e-stop alarm was cleared with the reset
     assert "moving" in window.devices.jog_label.text(), window.devices.jog_label.text()
+
+
+def test_readings_during_a_run_come_from_the_live_data(window, monkeypatch):
+    """With the rig held by the window (no run service), the readings line shows the latest Ft, Fn
+    and delta of the live data while a run is going, and nothing between runs."""
+    import numpy as np
+
+    from rigctl.gui.run_panel import RunPanel
+
+    t = np.arange(10) / 1024.0
+    block = {"t_s": t, "ft_N": np.full(10, 12.5), "fn_N": np.full(10, 300.25),
+             "d1_m": np.full(10, 40e-6), "d2_m": np.full(10, 10e-6)}
+    window.panel.live.feed([block])
+    window._local_snapshot()
+    assert "Ft" not in window.devices.readings.text()  # no run: nothing is read
+    monkeypatch.setattr(RunPanel, "busy", property(lambda self: True))
+    window._local_snapshot()
+    text = window.devices.readings.text()
+    assert "Ft 12.50 N" in text and "Fn 300.25 N" in text and "delta 30.00 um" in text, text
