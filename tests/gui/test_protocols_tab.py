@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from PySide6.QtWidgets import QTableWidget, QTableWidgetItem
 
 from rigctl.config.loader import default_config
 from rigctl.gui.run_panel import RunPanel
@@ -57,6 +58,12 @@ def make_panel(qtbot, panels: list[RunPanel], protocol: str = "tlre", **kw) -> R
     panel.camera_check.setChecked(False)
     panel.protocol_combo.setCurrentText(protocol)
     return panel
+
+
+def cell(table: QTableWidget, row: int, col: int) -> QTableWidgetItem:
+    item = table.item(row, col)
+    assert item is not None, (row, col)
+    return item
 
 
 def set_params(panel: RunPanel, values: dict[str, str]) -> None:
@@ -106,15 +113,15 @@ def test_a_limit_refusal_marks_the_parameter_causing_it_and_clears_when_edited(q
     assert "exceeds the limit 800 N" in panel.status_label.text()
     assert panel.marked_params() == ["fn_N"]
     row = list(panel.param_values()).index("fn_N")
-    cell = panel.param_table.item(row, 1)
-    assert "causes the refusal" in cell.toolTip() and "800 N" in cell.toolTip()
-    assert cell.background().color().name() == "#ffcdd2"
-    other = panel.param_table.item(list(panel.param_values()).index("velocity_m_s"), 1)
+    value = cell(panel.param_table, row, 1)
+    assert "causes the refusal" in value.toolTip() and "800 N" in value.toolTip()
+    assert value.background().color().name() == "#ffcdd2"
+    other = cell(panel.param_table, list(panel.param_values()).index("velocity_m_s"), 1)
     assert other.background().color().alpha() == 0
     # the refusal is stale once the value changes: marks, red plan and red status cleared
     panel.set_param("fn_N", "300.0")
     assert panel.marked_params() == []
-    assert "normal force" in cell.toolTip()
+    assert "normal force" in value.toolTip()
     assert panel.plan_view.toPlainText() == ""
     assert "refused" not in panel.status_label.text()
     assert "c62828" not in panel.status_label.styleSheet()
@@ -208,9 +215,9 @@ def queue_two(qtbot, panel: RunPanel, first: Path, second: Path) -> None:
     assert panel.add_to_queue()
     qtbot.waitUntil(lambda: len(panel.queue_view.state.items) == 2, timeout=TIMEOUT_MS)
     table = panel.queue_view.table
-    assert [table.item(r, 1).text() for r in range(2)] == ["force_sweep", "slide_hold_slide"]
-    assert "forces_N=100, 150" in table.item(0, 2).text()
-    assert [table.item(r, 4).text() for r in range(2)] == ["pending", "pending"]
+    assert [cell(table, r, 1).text() for r in range(2)] == ["force_sweep", "slide_hold_slide"]
+    assert "forces_N=100, 150" in cell(table, 0, 2).text()
+    assert [cell(table, r, 4).text() for r in range(2)] == ["pending", "pending"]
 
 
 def statuses(panel: RunPanel) -> list[str]:
