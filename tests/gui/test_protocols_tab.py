@@ -17,11 +17,13 @@ import pytest
 from PySide6.QtWidgets import QTableWidget, QTableWidgetItem
 
 from rigctl.config.loader import default_config
+from rigctl.errors import InputError
 from rigctl.gui.run_panel import RunPanel
 from rigctl.rigs import open_rig
 from rigctl.runservice.client import spawn_service
+from rigctl.runservice.queue import RunQueue
 from rigctl.runservice.server import service_alive
-from rigctl.runservice.wire import Address
+from rigctl.runservice.wire import Address, JobSpec
 from rigctl.storage.reader import RunReader
 
 TIMEOUT_MS = 90_000
@@ -272,3 +274,45 @@ def test_aborting_the_queue_mid_first_run_aborts_it_and_drops_the_rest(qtbot, pa
     assert not second.exists()
     with RunReader(first) as r:
         assert r.status == "aborted"
+
+
+# ---------------------------------------------------------------- the queue's rules (no processes)
+def spec(name: str) -> JobSpec:
+    return JobSpec("tlre", {}, f"/data/{name}.h5")
+
+
+def test_a_run_that_does_not_complete_stops_the_queue_and_says_so() -> None:
+    q = RunQueue()
+    a, b, c = (q.add(spec(n)) for n in "abc")
+    first = q.start()
+    assert first is not None and first.queue_item == a
+    nxt = q.finished(a, "completed", "")
+    assert nxt is not None and nxt.queue_item == b
+    assert q.finished(b, "failed", "StageFault: tangential alarm") is None
+    st = q.state()
+    assert not st.running and [it.status for it in st.items] == ["completed", "failed", "pending"]
+    assert "item 2 (tlre) ended failed: StageFault" in st.message and "1 run(s) not started" in st.message
+    again = q.start()  # the rest can be started again
+    assert again is not None and again.queue_item == c
+
+
+def test_queue_edits_follow_the_rules() -> None:
+    q = RunQueue()
+    a, b = q.add(spec("a")), q.add(spec("b"))
+    with pytest.raises(InputError, match=r"already records to /data/a\.h5"):
+        q.add(spec("a"))
+    with pytest.raises(InputError, match="no run file"):
+        q.add(JobSpec("tlre", {}, None))
+    q.move(b, -1)
+    assert [it.item for it in q.state().items] == [b, a]
+    started = q.start()
+    assert started is not None and started.queue_item == b
+    with pytest.raises(InputError, match="running"):
+        q.remove(b)
+    with pytest.raises(InputError, match="only pending items move"):
+        q.move(b, +1)
+    assert q.abort("operator") is True  # a queued run is going: the service aborts it
+    assert [it.status for it in q.state().items] == ["running", "dropped"]
+    assert q.finished(b, "aborted", "operator") is None
+    q.clear()
+    assert q.state().items == ()
