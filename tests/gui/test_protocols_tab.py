@@ -44,6 +44,8 @@ def rig():
 
 @pytest.fixture
 def panels():
+    """Panels to shut down after the test (a run aborted to its safe state). A test using ``rig``
+    requests it before ``panels``, so that the run ends before the rig is closed."""
     made: list[RunPanel] = []
     yield made
     for p in made:  # never leave a worker (or a loaded rig) behind
@@ -55,6 +57,9 @@ def panels():
 
 def make_panel(qtbot, panels: list[RunPanel], protocol: str = "tlre", **kw) -> RunPanel:
     panel = RunPanel(default_config(), "sim", **kw)
+    # qtbot closes its widgets before the fixtures end: a failing test that leaves a run going must
+    # not wait on the close dialog (say yes: the run is aborted to its safe state, then shut down)
+    panel._ask = lambda question: True  # type: ignore[method-assign]
     qtbot.addWidget(panel)
     panels.append(panel)
     panel.camera_check.setChecked(False)
@@ -81,7 +86,7 @@ def eta_numbers(panel: RunPanel) -> tuple[str, str]:
 
 
 # ---------------------------------------------------------------- the fixed behaviours (in process)
-def test_progress_and_eta_stand_still_while_paused(qtbot, panels, rig, tmp_path):
+def test_progress_and_eta_stand_still_while_paused(qtbot, rig, panels, tmp_path):
     panel = make_panel(qtbot, panels, rig=rig)
     panel.out_edit.setText(str(tmp_path / "paused.h5"))
     set_params(panel, LONG_SLIDE_TLRE)
@@ -106,7 +111,7 @@ def test_progress_and_eta_stand_still_while_paused(qtbot, panels, rig, tmp_path)
     assert panel.progress_bar.value() == panel.progress_bar.maximum()
 
 
-def test_a_limit_refusal_marks_the_parameter_causing_it_and_clears_when_edited(qtbot, panels, rig):
+def test_a_limit_refusal_marks_the_parameter_causing_it_and_clears_when_edited(qtbot, rig, panels):
     panel = make_panel(qtbot, panels, rig=rig)
     panel.set_param("velocity_m_s", "2e-6")  # edited too, but within the limits
     panel.set_param("fn_N", "5000")
@@ -156,7 +161,7 @@ def test_the_summary_follows_the_edited_values(qtbot, panels):
     assert "load Fn to 150 N" in text and "load Fn to 350 N" in text
 
 
-def test_a_refused_start_leaves_no_starting_label(qtbot, panels, rig, tmp_path):
+def test_a_refused_start_leaves_no_starting_label(qtbot, rig, panels, tmp_path):
     panel = make_panel(qtbot, panels, rig=rig)
     out = tmp_path / "refused.h5"
     panel.out_edit.setText(str(out))
@@ -169,7 +174,7 @@ def test_a_refused_start_leaves_no_starting_label(qtbot, panels, rig, tmp_path):
     assert panel.file_label.text() == "" and not out.exists()
 
 
-def test_the_run_file_is_shown_once_it_exists_and_records_operator_and_notes(qtbot, panels, rig,
+def test_the_run_file_is_shown_once_it_exists_and_records_operator_and_notes(qtbot, rig, panels,
                                                                             tmp_path):
     panel = make_panel(qtbot, panels, rig=rig)
     out = tmp_path / "named.h5"
@@ -226,7 +231,7 @@ def statuses(panel: RunPanel) -> list[str]:
     return [it.status for it in panel.queue_view.state.items]
 
 
-def test_a_queue_of_two_runs_completes_both_files(qtbot, panels, service, tmp_path):
+def test_a_queue_of_two_runs_completes_both_files(qtbot, service, panels, tmp_path):
     panel = make_panel(qtbot, panels, speed="max", service=service)
     first, second = tmp_path / "q1_sweep.h5", tmp_path / "q2_shs.h5"
     queue_two(qtbot, panel, first, second)
@@ -252,10 +257,9 @@ def test_a_queue_of_two_runs_completes_both_files(qtbot, panels, service, tmp_pa
         assert r.parameters["forces_N"] == [100.0, 150.0]
 
 
-def test_aborting_the_queue_mid_first_run_aborts_it_and_drops_the_rest(qtbot, panels, service,
-                                                                       tmp_path, monkeypatch):
+def test_aborting_the_queue_mid_first_run_aborts_it_and_drops_the_rest(qtbot, service, panels,
+                                                                       tmp_path):
     panel = make_panel(qtbot, panels, speed="max", service=service)
-    monkeypatch.setattr(panel, "_ask", lambda q: True)
     first, second = tmp_path / "q1_sweep.h5", tmp_path / "q2_shs.h5"
     queue_two(qtbot, panel, first, second)
     panel.queue_view.start_button.click()
