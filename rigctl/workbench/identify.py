@@ -17,7 +17,9 @@ Uncertainty: the covariance s^2 (J^T J)^-1 of the linearised problem, s^2 = |r|^
 standard Gauss-Newton estimate, e.g. Seber & Wild, *Nonlinear Regression*, sec. 2.1), mapped to
 parameter units. A parameter is flagged *undetermined* when its 1-sigma range exceeds 30 % (log
 parameters) or half its value and 5 % of its bounds (linear ones), or when the data do not move the
-residual at all.
+residual at all. The Jacobian of the uncertainties is staircase-aware
+(:meth:`HybridJacobian._staircase_column`): where the events jump rather than move with a
+parameter, its sigma is at least the step over which they changed.
 """
 
 from __future__ import annotations
@@ -238,9 +240,14 @@ class HybridJacobian:
         objective: Objective,
         fresh: Sequence[int],
         initial: FloatArray | None = None,
+        *,
+        staircase_aware: bool = False,
     ) -> None:
         self.obj = objective
         self.fresh = list(fresh)
+        self.staircase_aware = staircase_aware
+        """Columns as :meth:`_staircase_column` (for uncertainties) instead of the plain adaptive
+        difference the solver uses (:meth:`_column`)."""
         self.J = initial
         self.refresh_first = initial is None
         self.steps: dict[int, float] = {}
@@ -252,7 +259,33 @@ class HybridJacobian:
         """Forward difference with a step adapted per parameter: the residual change is kept
         between FD_CHANGE_MIN and FD_CHANGE_MAX (in units of scatter), large enough to rise above
         the sampling-phase jitter of the features and small enough to stay linear; the step found
-        is remembered for the next call.
+        is remembered for the next call. (What the solver uses: on a staircase residual its slopes
+        are jumps over small steps, see :meth:`_staircase_column`.)"""
+        if self.staircase_aware:
+            return self._staircase_column(u, f0, j)
+        lo, hi = self.obj.free[j].u_bounds
+        size = self.steps.get(j, FD_STEP)
+        col = np.zeros_like(f0)
+        for _ in range(3):
+            h = size if u[j] + size <= hi else -size
+            if u[j] + h < lo:
+                h = 0.5 * (hi - lo)
+            uj = u.copy()
+            uj[j] += h
+            diff = self.obj(uj) - f0
+            col = diff / h
+            change = float(np.linalg.norm(diff))
+            if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
+                size = max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
+            elif 0.0 < change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX:
+                size = min(abs(h) * FD_CHANGE_MIN / change, FD_STEP_MAX)
+            else:
+                break
+        self.steps[j] = size
+        return col
+
+    def _staircase_column(self, u: FloatArray, f0: FloatArray, j: int) -> FloatArray:
+        """The forward difference of :meth:`_column`, aware of a staircase residual.
 
         Event features make the residual a staircase where the events barely depend on a
         parameter (a slip gained or lost, a transition inside one sample): no step then gives a
@@ -449,8 +482,12 @@ def least_squares_fit(
     sigma: dict[str, float] = {}
     undetermined: list[str] = []
     if free and with_uncertainty:
-        J = jac.full(u)
-        sigma, undetermined = uncertainties(free, values, J, ev.score.vector, jac.resolution)
+        # a staircase-aware Jacobian for the uncertainties, its steps adapted afresh from FD_STEP
+        # (the solver's may have shrunk onto a jump): a jump of the events over a tiny step is not a
+        # slope that pins the parameter
+        careful = HybridJacobian(obj, [], staircase_aware=True)
+        J = careful.full(u)
+        sigma, undetermined = uncertainties(free, values, J, ev.score.vector, careful.resolution)
     return FitResult(
         choice=fitted,
         error=ev.score.error,
