@@ -25,7 +25,25 @@ def colour(i: int) -> str:
     return PASS_COLOURS[i % len(PASS_COLOURS)]
 
 
+FLAT_SPAN = 1e-3
+"""A linear y axis whose range is narrower than this fraction of its level is widened to
++-FLAT_HALF_WIDTH of the level: matplotlib would zoom onto values equal to four digits (with an
+offset such as "1e-5+1.413") and make them look like a trend."""
+FLAT_HALF_WIDTH = 0.025
+
+
+def _widen_flat_axes(fig: Figure) -> None:
+    for ax in fig.axes:
+        if ax.get_yscale() != "linear":
+            continue
+        lo, hi = ax.get_ylim()
+        mid = 0.5 * (lo + hi)
+        if mid != 0.0 and np.isfinite(mid) and hi - lo < FLAT_SPAN * abs(mid):
+            ax.set_ylim(mid - FLAT_HALF_WIDTH * abs(mid), mid + FLAT_HALF_WIDTH * abs(mid))
+
+
 def save(fig: Figure, folder: Path, name: str) -> str:
+    _widen_flat_axes(fig)
     fig.tight_layout()
     fig.savefig(folder / name, dpi=DPI)
     return name
