@@ -19,6 +19,7 @@ run: $(STAMP)
 	@mkdir -p runs
 	$(BIN)/rigctl run tlre --speed max --out runs/tlre.h5 --force
 	$(BIN)/rigctl info runs/tlre.h5
+	$(BIN)/rigctl analyse runs/tlre.h5 --out runs/analysis
 	$(BIN)/rigctl export runs/tlre.h5 --csv runs/tlre.csv --force
 	$(BIN)/rigctl model compare runs/tlre.h5 --report runs/compare
 	$(BIN)/rigctl simulate --fn 300 --velocity 1e-5 --duration 60 --out runs/tlre_sim.csv --plot runs/tlre_sim.png --force
