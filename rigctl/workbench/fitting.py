@@ -54,12 +54,12 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.rig_description import check_names
 
-BASELINE_MAX_NFEV = 24
-CANDIDATE_MAX_NFEV = 10
-N_STARTS = 2
-GN_SCAN_ITERATIONS = 2
-SCAN_FACTORS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0)
-SIGNED_SCAN_FACTORS: tuple[float, ...] = (-1.0, -0.2, 0.2, 1.0, 3.0)
+BASELINE_MAX_NFEV = 24  # solver evaluations for the model as given (its fit is done once)
+CANDIDATE_MAX_NFEV = 10  # per candidate start: a dozen candidates are fitted per round
+N_STARTS = 2  # candidate starts given the local fit after the scan (the better end is kept)
+GN_SCAN_ITERATIONS = 2  # Gauss-Newton steps of the base parameters at each promising scan point
+SCAN_FACTORS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0)  # x the effect's typical deviation from off
+SIGNED_SCAN_FACTORS: tuple[float, ...] = (-1.0, -0.2, 0.2, 1.0, 3.0)  # the same, both signs allowed
 MAX_SCAN_POINTS = 25
 
 

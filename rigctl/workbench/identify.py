@@ -40,11 +40,11 @@ from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.rig_description import RigDescription
 from rigctl.workbench.signals import FloatArray
 
-FD_STEP = 0.05
-FD_STEP_MIN = 1e-4
-FD_STEP_MAX = 0.3
-FD_CHANGE_MIN = 2.0
-FD_CHANGE_MAX = 20.0
+FD_STEP = 0.05  # first finite-difference step in internal units (5 % of a log parameter)
+FD_STEP_MIN = 1e-4  # smallest step: below it a stage count or a sample moves no feature
+FD_STEP_MAX = 0.3  # largest step: 35 % of a log parameter, still a local slope
+FD_CHANGE_MIN = 2.0  # residual change (scatter units) a step must reach: above the phase jitter
+FD_CHANGE_MAX = 20.0  # residual change a step may reach and still be linear
 FD_GROW_FROM_ZERO = 10.0
 """Factor a step grows by when it did not move the residual at all (features are read from sampled
 signals: a small enough change of a parameter moves no event by a sample)."""
