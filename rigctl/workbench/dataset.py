@@ -35,7 +35,7 @@ from rigctl.workbench.signals import FloatArray
 BLOCK_SIZE = 6
 """Events per averaging block (the first event of each drive segment is a block of its own)."""
 
-MIN_SAMPLES = 64
+MIN_SAMPLES = 64  # fewer samples cannot hold one stick and slip with its fitted lines
 
 
 @dataclass(frozen=True)
@@ -270,7 +270,7 @@ IRREGULAR_FACTOR = 3.0
 ``drop_N``) is irregular: compared by its mean, not slip by slip (:func:`irregular_phases`)."""
 SHORT_CYCLE_FACTOR = 2.0
 """...or whose median cycle is shorter than this many post-slip settle times."""
-MIN_PHASE_EVENTS = 5
+MIN_PHASE_EVENTS = 5  # slips a phase needs before its cycle regularity is judged
 
 
 def _phase_values(ev: EventTable, name: str, seg: int, first: np.ndarray) -> FloatArray:

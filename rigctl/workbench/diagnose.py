@@ -53,10 +53,10 @@ from rigctl.workbench.residual_map import (
     significant_trends,
 )
 
-MAX_AUTO_STEPS = 5
+MAX_AUTO_STEPS = 5  # rounds of --auto at most: each adds one effect, and this bounds its run time
 PRUNE_MAX_NFEV = 12
 """Least-squares evaluations of the refit without an effect when checking that it earns its place."""
-COST_PROBE_S = 30.0
+COST_PROBE_S = 30.0  # seconds of the first run each candidate is timed on (several cycles)
 Progress = Callable[[str], None]
 
 

@@ -60,7 +60,7 @@ N_STARTS = 2  # candidate starts given the local fit after the scan (the better 
 GN_SCAN_ITERATIONS = 2  # Gauss-Newton steps of the base parameters at each promising scan point
 SCAN_FACTORS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0)  # x the effect's typical deviation from off
 SIGNED_SCAN_FACTORS: tuple[float, ...] = (-1.0, -0.2, 0.2, 1.0, 3.0)  # the same, both signs allowed
-MAX_SCAN_POINTS = 25
+MAX_SCAN_POINTS = 25  # scan points of an effect with several parameters (a 5 x 5 grid)
 
 
 def identify_model(

@@ -51,9 +51,9 @@ from rigctl.errors import InputError
 T = TypeVar("T")
 R = TypeVar("R")
 
-DEFAULT_TIMEOUT_S = 300.0
-ADAPTIVE_FACTOR = 6.0
-ADAPTIVE_FLOOR_S = 20.0
+DEFAULT_TIMEOUT_S = 300.0  # a candidate fit past five minutes is reported as timed out
+ADAPTIVE_FACTOR = 6.0  # a fit may take this many times the finished ones (scaled by its cost)
+ADAPTIVE_FLOOR_S = 20.0  # ... but never less than this: no fit is stopped in its first seconds
 
 
 CONNECT_TIMEOUT_S = 30.0

@@ -58,8 +58,8 @@ LOW_END: dict[str, str] = {
     "dft_dt_N_per_s": "at slow loading",
 }
 
-TREND_T_MIN = 3.0
-TREND_AMPLITUDE_MIN = 1.0
+TREND_T_MIN = 3.0  # t statistic a residual trend needs to be reported (about p < 0.003)
+TREND_AMPLITUDE_MIN = 1.0  # and an amplitude of one scatter unit: smaller is not worth words
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,7 @@ def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict
     return out
 
 
-LOG_SPAN = 5.0
+LOG_SPAN = 5.0  # a covariate spanning more than a factor 5 is regressed on its logarithm
 
 
 def transform(c: FloatArray) -> tuple[FloatArray, bool]:
