@@ -15,8 +15,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from rigctl.gui.decimate import FloatArray, peak_indices
 
 if TYPE_CHECKING:
@@ -26,8 +24,6 @@ if TYPE_CHECKING:
 
 OVERLAY_POINTS = 5000
 MAX_OVERLAY_RUNS = 6
-TREND_T_MIN = 3.0
-"""Residual trends with |t| below this are shown as 0 (as the HTML report's residual map)."""
 
 
 @dataclass(frozen=True)
@@ -167,7 +163,7 @@ def compare_view(cmp: Comparison) -> CompareView:
     """What the tab needs of a :class:`~rigctl.workbench.compare.Comparison`."""
     from rigctl.workbench.feature_info import FEATURES
     from rigctl.workbench.features import COVARIATES, EVENT_FEATURES
-    from rigctl.workbench.residual_map import COVARIATE_NAMES
+    from rigctl.workbench.residual_map import COVARIATE_NAMES, trend_matrix
 
     overlays = []
     for run, res, prep in list(zip(cmp.runs, cmp.results, cmp.dataset.runs,
@@ -178,11 +174,7 @@ def compare_view(cmp: Comparison) -> CompareView:
         dm = res.d1_m - res.d2_m
         overlays.append(Overlay(prep.name, t[i], run.ft_N[i], run.delta_m[i], res.t_s[j],
                                 res.ft_N[j], dm[j]))
-    amp = np.zeros((len(EVENT_FEATURES), len(COVARIATES)))
-    for tr in cmp.rmap.trends:
-        if abs(tr.t_stat) >= TREND_T_MIN:
-            amp[EVENT_FEATURES.index(tr.feature), COVARIATES.index(tr.covariate)] = (
-                np.sign(tr.slope) * tr.amplitude_z)
+    amp = trend_matrix(cmp.rmap)
     choice = cmp.fit.choice
     return CompareView(
         label=choice.label(), effects=tuple(choice.effects), error=float(cmp.fit.error),

@@ -18,7 +18,7 @@ from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, EventTable
 from rigctl.workbench.ranking import CandidateScore
-from rigctl.workbench.residual_map import COVARIATE_NAMES, ResidualMap
+from rigctl.workbench.residual_map import COVARIATE_NAMES, ResidualMap, trend_matrix
 
 MEAS = "#444444"
 MODEL = "#d62728"
@@ -128,11 +128,7 @@ def features(dataset: Dataset, model_events: Sequence[EventTable], path: Path) -
 
 def residual_heatmap(rmap: ResidualMap, path: Path) -> Path:
     """Trend amplitude (z) of every feature against every covariate; stage and phase bars."""
-    amp = np.zeros((len(EVENT_FEATURES), len(COVARIATES)))
-    for tr in rmap.trends:
-        i = EVENT_FEATURES.index(tr.feature)
-        j = COVARIATES.index(tr.covariate)
-        amp[i, j] = np.sign(tr.slope) * tr.amplitude_z if abs(tr.t_stat) >= 3 else 0.0
+    amp = trend_matrix(rmap)
     fig = plt.figure(figsize=(12, 5.5))
     ax = fig.add_axes((0.24, 0.28, 0.44, 0.65))
     vmax = max(1.0, float(np.max(np.abs(amp))))

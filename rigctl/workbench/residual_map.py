@@ -194,6 +194,18 @@ def _verb(mean_residual: float) -> str:
     return "under-predicted" if mean_residual < 0 else "over-predicted"
 
 
+def trend_matrix(rmap: ResidualMap) -> FloatArray:
+    """Signed trend amplitude (z) of every slip feature (rows, :data:`EVENT_FEATURES`) against every
+    covariate (columns, :data:`COVARIATES`); 0 where |t| < TREND_T_MIN (the residual-map picture of
+    the report and of the GUI)."""
+    amp = np.zeros((len(EVENT_FEATURES), len(COVARIATES)))
+    for tr in rmap.trends:
+        if abs(tr.t_stat) >= TREND_T_MIN:
+            amp[EVENT_FEATURES.index(tr.feature), COVARIATES.index(tr.covariate)] = (
+                np.sign(tr.slope) * tr.amplitude_z)
+    return amp
+
+
 def significant_trends(rmap: ResidualMap) -> list[Trend]:
     return [
         t for t in rmap.trends
