@@ -267,20 +267,15 @@ class HybridJacobian:
         size = self.steps.get(j, FD_STEP)
         col = np.zeros_like(f0)
         for _ in range(3):
-            h = size if u[j] + size <= hi else -size
-            if u[j] + h < lo:
-                h = 0.5 * (hi - lo)
+            h = _signed_step(float(u[j]), size, lo, hi)
             uj = u.copy()
             uj[j] += h
             diff = self.obj(uj) - f0
             col = diff / h
-            change = float(np.linalg.norm(diff))
-            if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
-                size = max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
-            elif 0.0 < change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX:
-                size = min(abs(h) * FD_CHANGE_MIN / change, FD_STEP_MAX)
-            else:
+            nxt = _next_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
+            if nxt is None:
                 break
+            size = nxt
         self.steps[j] = size
         return col
 
@@ -299,9 +294,7 @@ class HybridJacobian:
         tried: list[tuple[float, float, FloatArray]] = []
         linear = False
         for _ in range(3):
-            h = size if u[j] + size <= hi else -size
-            if u[j] + h < lo:
-                h = 0.5 * (hi - lo)
+            h = _signed_step(float(u[j]), size, lo, hi)
             uj = u.copy()
             uj[j] += h
             diff = self.obj(uj) - f0
@@ -313,15 +306,11 @@ class HybridJacobian:
                 break  # pinned by validity both ways: no usable slope
             change = float(np.linalg.norm(diff))
             tried.append((abs(h), change, diff / h))
-            if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
-                size = max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
-            elif change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX:
-                # no change at all: the step fell between two samples' worth of feature change
-                grow = FD_CHANGE_MIN / change if change > 0.0 else FD_GROW_FROM_ZERO
-                size = min(abs(h) * grow, FD_STEP_MAX)
-            else:
+            nxt = _next_step(h, change, grow_from_zero=True)
+            if nxt is None:
                 linear = FD_CHANGE_MIN <= change <= FD_CHANGE_MAX
                 break
+            size = nxt
         self.steps[j] = size
         self.resolution.pop(j, None)
         if not tried:
@@ -356,6 +345,28 @@ class HybridJacobian:
         for j in range(u.shape[0]):
             J[:, j] = self._column(u, f0, j)
         return J
+
+
+def _signed_step(u_j: float, size: float, lo: float, hi: float) -> float:
+    """A forward step of ``size`` from ``u_j``, backward where it would pass the upper bound, half
+    the range where it would pass both."""
+    h = size if u_j + size <= hi else -size
+    if u_j + h < lo:
+        h = 0.5 * (hi - lo)
+    return h
+
+
+def _next_step(h: float, change: float, *, grow_from_zero: bool) -> float | None:
+    """The next step size after step ``h`` moved the residual by ``change`` (scatter units): shrunk
+    above FD_CHANGE_MAX, grown below FD_CHANGE_MIN (from no change at all only with
+    ``grow_from_zero``: the step fell between two samples' worth of feature change), within
+    FD_STEP_MIN..FD_STEP_MAX; None when ``h`` is to be kept."""
+    if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
+        return max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
+    if change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX and (change > 0.0 or grow_from_zero):
+        grow = FD_CHANGE_MIN / change if change > 0.0 else FD_GROW_FROM_ZERO
+        return min(abs(h) * grow, FD_STEP_MAX)
+    return None
 
 
 STAIRCASE_RATIO = 3.0
