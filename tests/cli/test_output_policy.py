@@ -149,3 +149,64 @@ def test_a_run_file_missing_a_listed_channel_is_one_line(tmp_path: Path) -> None
         del f["entry/daq/ft_N"]
     for cmd in (["info", str(run)], ["model", "compare", str(run)]):
         _one_line_error(_rigctl(*cmd), "lists channel(s) ft_N but has no")
+
+
+def _deny_writes_in(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Emulate a read-only ``folder`` at the permission check (as root every folder is writable;
+    the real-permission twin below runs where the tests do not run as root)."""
+    import os
+
+    from rigctl.io import outputs
+
+    real_access = os.access
+
+    def access(path: object, mode: int) -> bool:
+        if Path(str(path)).resolve() == folder.resolve() and mode & os.W_OK:
+            return False
+        return real_access(path, mode)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(outputs.os, "access", access)
+
+
+def test_outputs_into_a_read_only_folder_are_refused_before_the_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rigctl.cli.main import main
+
+    data = tmp_path / "d.csv"
+    assert _rigctl("simulate", "--duration", "5", "--out", str(data)).returncode == 0
+    run = tmp_path / "d.h5"
+    assert _rigctl("simulate", "--duration", "5", "--out", str(run)).returncode == 0
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    _deny_writes_in(locked, monkeypatch)
+    cases = [
+        (["simulate", "--duration", "1", "--plot", str(locked / "p.png")], "--plot"),
+        (["simulate", "--duration", "1", "--out", str(locked / "s.csv")], "--out"),
+        (["model", "compare", str(data), "--report", str(locked / "rep")], "--report"),
+        (["model", "diagnose", str(data), "--report", str(locked / "diag")], "--report"),
+        (["export", str(run), "--csv", str(locked / "e.csv")], "--csv"),
+        (["import", str(data), "--out", str(locked / "i.h5")], "--out"),
+        (["analyse", str(data), "--out", str(locked / "an")], "--out"),
+    ]
+    for argv, option in cases:
+        t0 = time.monotonic()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and option in err[0] and "not writable" in err[0], err
+        assert time.monotonic() - t0 < 20.0, argv  # refused before any fit or simulation
+    assert list(locked.iterdir()) == []
+
+
+@pytest.mark.skipif(sys.platform == "win32" or __import__("os").geteuid() == 0,
+                    reason="root may write into any folder")
+def test_a_really_read_only_folder_is_refused(tmp_path: Path) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        _one_line_error(_rigctl("simulate", "--duration", "1", "--plot", str(locked / "p.png")),
+                        "not writable")
+        assert list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
