@@ -20,6 +20,7 @@ from rigctl.workbench.dataset import Dataset, prepare_dataset, protocols_present
 from rigctl.workbench.evaluate import Evaluation, evaluate
 from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import FitResult
+from rigctl.workbench.image_features import model_ratios
 from rigctl.workbench.metrics import FeatureError, physical_errors
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.residual_map import (
@@ -57,6 +58,23 @@ class Comparison:
             })
         return rows
 
+    def image_rows(self) -> list[dict[str, Any]]:
+        """Per run: the image features measured and of the model, the per-part load ratios r(k)
+        (:mod:`rigctl.workbench.image_features`), or why the run has none."""
+        rows: list[dict[str, Any]] = []
+        images = self.evaluation.images or [{} for _ in self.dataset.runs]
+        results: list[SimResult | None] = list(self.results) or [None] * len(self.dataset.runs)
+        for run, model, res in zip(self.dataset.runs, images, results, strict=True):
+            if run.image is None:
+                rows.append({"name": run.name, "absent": run.image_absent or "no camera frames"})
+                continue
+            rows.append({
+                "name": run.name, **run.image.to_json(),
+                "model": model,
+                "r_model": model_ratios(res, run.image).tolist() if res is not None else None,
+            })
+        return rows
+
     def to_json(self) -> dict[str, Any]:
         return {
             "model": self.fit.choice.label(),
@@ -72,6 +90,7 @@ class Comparison:
                 for name, fe in self.errors.items()
             },
             "parameters": self.parameter_rows(),
+            "image_features": self.image_rows(),
             "undetermined": list(self.fit.undetermined),
             "discrepancies": self.discrepancies,
             "residual_by_stage": self.rmap.by_stage,

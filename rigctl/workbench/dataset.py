@@ -27,6 +27,7 @@ from rigctl.workbench.feature_info import (
     UNIT_FLOOR,
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
+from rigctl.workbench.image_features import ImageFeatures, read_image_features
 from rigctl.workbench.long_records import WINDOW_KEY
 from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.rig_description import RigDescription, campaign_description
@@ -34,6 +35,8 @@ from rigctl.workbench.signals import FloatArray
 
 BLOCK_SIZE = 6
 """Events per averaging block (the first event of each drive segment is a block of its own)."""
+
+MAX_LISTED = 4  # runs named in a note before "and N more"
 
 MIN_SAMPLES = 64  # fewer samples cannot hold one stick and slip with its fitted lines
 
@@ -58,6 +61,10 @@ class PreparedRun:
     """False when the record has no displacement probes (:mod:`rigctl.workbench.probe_range`)."""
     lead_in_s: float = 0.0
     """Drive time the model runs before the record's first sample (:func:`lead_in`)."""
+    image: ImageFeatures | None = None
+    """What the run's camera frames say (:mod:`rigctl.workbench.image_features`); None without."""
+    image_absent: str = ""
+    """Why the run has no image feature ('' when it has one, or when images were not asked for)."""
 
 
 @dataclass(frozen=True)
@@ -163,8 +170,12 @@ def check_run(run: MeasuredRun) -> None:
         )
 
 
-def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None) -> PreparedRun:
-    """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes."""
+def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
+                images: bool = False) -> PreparedRun:
+    """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes.
+
+    ``images``: also read the run file's camera frames once, streamed, into the image features
+    (:func:`rigctl.workbench.image_features.read_image_features`)."""
     check_run(run)
     prof = drive_profile(run)
     t = run.t_s - run.t_s[0]
@@ -177,7 +188,15 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None)
     events = extract_events(
         run.t_s, run.ft_N, run.delta_m, run.fn_N, prof, read, slips, valid
     )
+    image: ImageFeatures | None = None
+    absent = ""
+    if images and WINDOW_KEY in run.metadata:
+        absent = "a window of a long record (its frames are not cut with it)"
+    elif images:
+        image, absent = read_image_features(run, events, read)
     return PreparedRun(
+        image=image,
+        image_absent=absent,
         lead_in_s=lead_in(run.ft_N, prof, events, run.sample_rate_hz),
         name=name,
         sample_rate_hz=run.sample_rate_hz,
@@ -365,7 +384,7 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     notes: list[str] = rig.notes()
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
-        pr = prepare_run(run, name, rig.delta_measured)
+        pr = prepare_run(run, name, rig.delta_measured, images=True)
         if WINDOW_KEY in run.metadata:
             notes.append(run.metadata[WINDOW_KEY])
         notes.extend(pr.notes)
@@ -379,6 +398,12 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
             "force never drops)",
             path=where,
         )
+    without = [f"{p.name} ({p.image_absent})" for p in prepared if p.image is None]
+    if without:
+        listed = ", ".join(without[:MAX_LISTED]) + (
+            f" and {len(without) - MAX_LISTED} more" if len(without) > MAX_LISTED else "")
+        notes.append(f"no image feature (the model's P(i, t) against the contact images) for "
+                     f"{listed}")
     sigma, scale = feature_scales(prepared)
     for i, r in enumerate(prepared):
         irr = irregular_phases(r, sigma)

@@ -14,6 +14,7 @@ import numpy as np
 from rigctl.model import Drive, ModelSpec, SimResult, Simulator
 from rigctl.workbench.dataset import Dataset, PreparedRun
 from rigctl.workbench.features import EventTable, extract_events
+from rigctl.workbench.image_features import model_image_numbers
 from rigctl.workbench.metrics import Score, score
 from rigctl.workbench.model_choice import ModelChoice
 
@@ -54,6 +55,8 @@ class Evaluation:
     score: Score
     events: list[EventTable]
     results: list[SimResult] | None
+    images: list[dict[str, float]] | None = None
+    """Per run, the model's image features over the run's frames (empty without frames)."""
 
 
 def evaluate(
@@ -63,9 +66,13 @@ def evaluate(
     spec = model.build() if isinstance(model, ModelChoice) else model
     events: list[EventTable] = []
     results: list[SimResult] = []
+    images: list[dict[str, float]] = []
     for run in dataset.runs:
         res = simulate_run(spec, run)
         events.append(read_result(res, run))
+        # the model's P(i, t) over the run's frames: its stage's shares (no extra engine work)
+        images.append(model_image_numbers(res, run.image) if run.image is not None else {})
         if keep_results:
             results.append(res)
-    return Evaluation(score(dataset, events), events, results if keep_results else None)
+    return Evaluation(score(dataset, events, images), events,
+                      results if keep_results else None, images)

@@ -26,6 +26,9 @@ class FeatureInfo:
     False for the initial-stage curve, read once per run."""
     from_slope: bool = False
     """Read from a fitted slope, whose per-event standard error the event table keeps."""
+    from_images: bool = False
+    """Read from the run file's camera frames (:mod:`rigctl.workbench.image_features`), once per
+    run; a run without frames has none."""
 
 
 FEATURES: dict[str, FeatureInfo] = {
@@ -55,6 +58,12 @@ FEATURES: dict[str, FeatureInfo] = {
                     phrase="probe readings delta relative to the stage (lag)", floor_kind="slip"),
         FeatureInfo("init_k_N_per_m", "N/m", log=True, phrase="initial-stage stiffnesses",
                     floor_kind="relative", per_event=False),
+        FeatureInfo("p_tilt_initial", "-", log=False,
+                    phrase="initial-stage stress tilts (P_linear slope, from the contact images)",
+                    floor_kind="unit", per_event=False, from_images=True),
+        FeatureInfo("p_var_stable", "-", log=False,
+                    phrase="stable-stage changes of the back-end stress share (contact images)",
+                    floor_kind="unit", per_event=False, from_images=True),
     )
 }
 
@@ -62,6 +71,8 @@ EVENT_FEATURES: tuple[str, ...] = tuple(n for n, f in FEATURES.items() if f.per_
 """The per-cycle features, in the order of the residual vector."""
 SE_FEATURES: tuple[str, ...] = tuple(n for n, f in FEATURES.items() if f.from_slope)
 """Features read from a fitted slope, whose per-event standard error the event table keeps."""
+IMAGE_FEATURES: tuple[str, ...] = tuple(n for n, f in FEATURES.items() if f.from_images)
+"""Features read from the contact images (after the initial-stage curve in the residual vector)."""
 
 FLOOR_FRACTION = 0.005
 """Scatter floor: 0.5 % of the feature's scale, so noise-free data do not get infinite weight."""

@@ -24,13 +24,13 @@ RMSE would measure the phase drift, not the physics (docs/workbench.md, "Why not
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from rigctl.workbench.alignment import match_events, spurious_counts
 from rigctl.workbench.dataset import Dataset, PreparedRun
-from rigctl.workbench.feature_info import FEATURES
+from rigctl.workbench.feature_info import FEATURES, IMAGE_FEATURES
 from rigctl.workbench.features import EVENT_FEATURES, EventTable
 from rigctl.workbench.signals import FloatArray
 
@@ -51,6 +51,9 @@ class RunComparison:
     init_residual: FloatArray
     spurious: np.ndarray
     """Model slips per drive segment where the measurement has none."""
+    image_residual: dict[str, float] = field(default_factory=dict)
+    """Image features (:mod:`rigctl.workbench.image_features`): model - measured; empty for a run
+    without frames."""
 
 
 def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
@@ -61,7 +64,8 @@ def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
     return model - meas
 
 
-def compare_run(run: PreparedRun, model_events: EventTable) -> RunComparison:
+def compare_run(run: PreparedRun, model_events: EventTable,
+                model_image: dict[str, float] | None = None) -> RunComparison:
     meas = run.events
     match = match_events(meas, model_events, run.drive)
     paired = match >= 0
@@ -75,7 +79,13 @@ def compare_run(run: PreparedRun, model_events: EventTable) -> RunComparison:
         missing[name] = np.isfinite(mv) & ~np.isfinite(residual[name])
     init = _residual(INIT_FEATURE, meas.init_k_N_per_m, model_events.init_k_N_per_m)
     spur = spurious_counts(meas, model_events, run.drive.n_segments(), run.drive)
-    return RunComparison(match, residual, missing, init, spur)
+    image: dict[str, float] = {}
+    if run.image is not None:
+        measured = run.image.measured()
+        for name in IMAGE_FEATURES:
+            if math.isfinite(measured[name]):
+                image[name] = (model_image or {}).get(name, math.nan) - measured[name]
+    return RunComparison(match, residual, missing, init, spur, image)
 
 
 @dataclass
@@ -93,9 +103,16 @@ class Score:
         return {"error": self.error, **{f"{k}": v for k, v in self.feature_error.items()}}
 
 
-def score(dataset: Dataset, model_events: list[EventTable]) -> Score:
-    """Compare model events with the measured ones run by run; see the module docstring."""
-    comps = [compare_run(r, m) for r, m in zip(dataset.runs, model_events, strict=True)]
+def score(dataset: Dataset, model_events: list[EventTable],
+          model_images: list[dict[str, float]] | None = None) -> Score:
+    """Compare model events with the measured ones run by run; see the module docstring.
+
+    ``model_images``: per run, the model's image features over the run's frames (runs with frames
+    add one entry per image feature, after the initial-stage curve; a model value that cannot be
+    read counts MISSING_EVENT_Z)."""
+    imgs = model_images or [{} for _ in dataset.runs]
+    comps = [compare_run(r, m, i)
+             for r, m, i in zip(dataset.runs, model_events, imgs, strict=True)]
     parts: list[FloatArray] = []
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
@@ -133,6 +150,15 @@ def score(dataset: Dataset, model_events: list[EventTable]) -> Score:
         if active.any():
             sums[INIT_FEATURE] = sums.get(INIT_FEATURE, 0.0) + float(np.sum(z[active] ** 2))
             counts[INIT_FEATURE] = counts.get(INIT_FEATURE, 0) + int(np.count_nonzero(active))
+    for name in IMAGE_FEATURES:
+        for run, comp in zip(dataset.runs, comps, strict=True):
+            if run.image is None or name not in comp.image_residual:
+                continue
+            z_img = comp.image_residual[name] / run.image.sigma()[name]
+            z_img = z_img if math.isfinite(z_img) else MISSING_EVENT_Z
+            parts.append(np.array([z_img]))
+            sums[name] = sums.get(name, 0.0) + z_img**2
+            counts[name] = counts.get(name, 0) + 1
     feature_error = {k: math.sqrt(sums[k] / counts[k]) for k in sums if counts[k] > 0}
     error = math.sqrt(float(np.mean([v**2 for v in feature_error.values()]))) \
         if feature_error else float("nan")
@@ -156,7 +182,14 @@ def _equalise(vec: FloatArray, dataset: Dataset, counts: dict[str, int]) -> Floa
                 out[pos : pos + ns] *= w
                 pos += ns
     w = 1.0 / math.sqrt(counts[INIT_FEATURE]) if counts.get(INIT_FEATURE) else 0.0
-    out[pos:] *= w
+    n_init = sum(r.events.init_k_N_per_m.shape[0] for r in dataset.runs)
+    out[pos : pos + n_init] *= w
+    pos += n_init
+    for name in IMAGE_FEATURES:  # one entry per run that has the feature, in run order
+        n = counts.get(name, 0)
+        if n:
+            out[pos : pos + n] *= 1.0 / math.sqrt(n)
+            pos += n
     return out
 
 
@@ -174,8 +207,10 @@ class FeatureError:
 def physical_errors(comps: list[RunComparison]) -> dict[str, FeatureError]:
     """Per feature: RMS and mean of the event residuals in the feature's unit (or relative)."""
     out: dict[str, FeatureError] = {}
-    for name in (*EVENT_FEATURES, INIT_FEATURE):
-        if name == INIT_FEATURE:
+    for name in (*EVENT_FEATURES, INIT_FEATURE, *IMAGE_FEATURES):
+        if name in IMAGE_FEATURES:
+            r = np.array([c.image_residual[name] for c in comps if name in c.image_residual])
+        elif name == INIT_FEATURE:
             r = np.concatenate([c.init_residual for c in comps])
         else:
             r = np.concatenate([c.residual[name] for c in comps])

@@ -190,3 +190,29 @@ def error_fall(labels: Sequence[str], errors: Sequence[float], path: Path) -> Pa
     ax.axhline(1.0, color="#888888", ls=":", lw=1)
     ax.set_title("error at each step (dotted: measurement scatter)", fontsize=9, loc="left")
     return _save(fig, path)
+
+
+def image_ratios(rows: Sequence[dict[str, object]], path: Path) -> Path:
+    """The contact images against the model's stress distribution, one panel per run with frames:
+    the per-part load ratio r(k) of the initial to the stable stage read from the images at equal
+    light (dots) and the model's (line), with both tilts (:mod:`rigctl.workbench.image_features`)."""
+    n = max(len(rows), 1)
+    fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 3.6), squeeze=False)
+    for ax, row in zip(axes[0], rows, strict=False):
+        r_meas = np.asarray(row["r_measured"], dtype=np.float64)
+        k = np.arange(1, r_meas.size + 1)
+        ax.axhline(1.0, color="#bbbbbb", lw=0.8)
+        ax.plot(k, r_meas, "o", color=MEAS, ms=5,
+                label=f"images: tilt {float(row['p_tilt_initial']):.3f} "  # type: ignore[arg-type]
+                      f"+- {float(row['p_tilt_initial_sigma']):.3f}")  # type: ignore[arg-type]
+        r_model = row.get("r_model")
+        model = row.get("model")
+        if r_model is not None and isinstance(model, dict):
+            ax.plot(k, np.asarray(r_model, dtype=np.float64), "-", color=MODEL, lw=1.2,
+                    label=f"model: tilt {float(model.get('p_tilt_initial', np.nan)):.3f}")
+        ax.set_xticks(k)
+        ax.set_xlabel("part k along x (1 = back end)")
+        ax.set_ylabel("r(k): initial / stable load share")
+        ax.set_title(str(row["name"]), fontsize=9, loc="left")
+        ax.legend(fontsize=8, loc="upper left")
+    return _save(fig, path)

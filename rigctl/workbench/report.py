@@ -76,9 +76,38 @@ def _comparison_sections(cmp: Comparison, folder: Path, *, prefix: str = "",
         "<h3>Parameters</h3>",
         _table(["parameter", "value", "1-sigma", "unit", "fitted", "note"], par_rows),
     ]
+    body += _image_section(cmp, folder, prefix)
     if anchor is not None:
         body = [f'<section id="{html.escape(anchor)}">', *body, "</section>"]
     return body
+
+
+def _image_section(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
+    """The model's stress distribution against the contact images (docs/workbench.md, "Contact
+    images"): per run the image features and the per-part ratios, or why a run has none."""
+    rows = cmp.image_rows()
+    with_frames = [r for r in rows if "absent" not in r]
+    out = ["<h3>Stress distribution against the contact images</h3>"]
+    for r in rows:
+        if "absent" in r:
+            out.append(f"<p>{html.escape(str(r['name']))}: no image feature "
+                       f"({html.escape(str(r['absent']))}).</p>")
+    if not with_frames:
+        return out
+    png = plots.image_ratios(with_frames, folder / f"{prefix}image_ratios.png")
+    table = [
+        [r["name"], FEATURES[name].phrase, r[name], r[f"{name}_sigma"],
+         r["model"].get(name, math.nan), cmp.fit.feature_error.get(name, math.nan)]
+        for r in with_frames for name in ("p_tilt_initial", "p_var_stable")
+    ]
+    out += [
+        "<p>r(k): the load share of part k in the initial stage over its share in the stable "
+        "stage, read from the frames where the part's light is equal (equal light, equal "
+        "pressure); the tilt of r(k) along x is p_slope for the model's P_linear.</p>",
+        f'<img src="{png.name}">',
+        _table(["run", "feature", "measured", "scatter", "model", "z error"], table),
+    ]
+    return out
 
 
 def _page(title: str, body: list[str]) -> str:
