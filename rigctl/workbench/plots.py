@@ -213,6 +213,6 @@ def image_ratios(rows: Sequence[dict[str, object]], path: Path) -> Path:
         ax.set_xticks(k)
         ax.set_xlabel("part k along x (1 = back end)")
         ax.set_ylabel("r(k): initial / stable load share")
-        ax.set_title(str(row["name"]), fontsize=9, loc="left")
+        ax.set_title(Path(str(row["name"])).name, fontsize=9, loc="left")
         ax.legend(fontsize=8, loc="upper left")
     return _save(fig, path)
