@@ -7,13 +7,16 @@ noise so that the compression sees what a real recording gives. Then, in one run
 
 * **read**: ``h5py`` reads every frame of the file, chunk by chunk (the same chunk size), and does
   nothing with them: what reading costs (decompression included).
+* **decoder read**: the analyses' reader, :class:`rigctl.analysis.frame_inflate.FrameDecoder`
+  (ISA-L's inflate, h5py for what it cannot handle), reads the same frames and does nothing with
+  them; how many frames it inflated itself and how many h5py read.
 * **intensity**: :func:`rigctl.analysis.contact_intensity.stream_intensity` over the same frames
-  (Isum, Ic and I(x, t) in 100 bins, Sec. 2.2 and 3.2): frames/s and its ratio to the read.
+  (Isum, Ic and I(x, t) in 100 bins, Sec. 2.2 and 3.2): frames/s and its ratio to both reads.
 * **compute**: the intensity pass's arithmetic alone on one chunk already in memory (frames/s).
 * **memory**: the peak of ``tracemalloc`` during the intensity pass for several chunk sizes, next to
   the file's pixels and what the pass keeps per frame.
 
-Reads and passes alternate ``--repeat`` times (best of each), so both see the same load and page
+Reads and passes alternate ``--repeat`` times (best of each), so all see the same load and page
 cache. ``--profile`` prints cProfile's top entries of one intensity pass.
 
 ``python -m benchmarks.bench_contact [--frames N] [--compression gzip|lzf|none] [--repeat R]
@@ -45,6 +48,7 @@ from rigctl.analysis.contact_intensity import (
     find_contact_region,
     stream_intensity,
 )
+from rigctl.analysis.frame_inflate import FrameDecoder
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import (
     CAMERA,
@@ -72,9 +76,18 @@ class Report:
     chunk_frames: int = 0
     write_s: float = 0.0
     read_fps: float = 0.0
+    """Plain h5py read."""
+    decoder_fps: float = 0.0
+    """The analyses' reader (FrameDecoder) alone."""
+    decoder_fast_frames: int = 0
+    """Frames of one decoder read that ISA-L inflated (the rest h5py read)."""
+    decoder_over_read: float = 0.0
+    """Time of the decoder read / time of the plain read."""
     intensity_fps: float = 0.0
     intensity_over_read: float = 0.0
-    """Time of the intensity pass / time of the plain read (1 = costs nothing beyond reading)."""
+    """Time of the intensity pass / time of the plain read (1 = costs what h5py's read costs)."""
+    intensity_over_decoder: float = 0.0
+    """Time of the intensity pass / time of the decoder read (the analysis beyond reading)."""
     compute_fps: float = 0.0
     region_s: float = 0.0
     """find_contact_region (48 frames spread over the run)."""
@@ -121,6 +134,18 @@ def plain_read(path: Path, n: int, step: int) -> float:
             frames = ds[a:min(a + step, n)]
             del frames
     return time.perf_counter() - t0
+
+
+def decoder_read(path: Path, n: int, step: int) -> tuple[float, int]:
+    """Seconds to read every frame with the analyses' FrameDecoder, ``step`` frames at a time, and
+    the frames it inflated itself."""
+    t0 = time.perf_counter()
+    with h5py.File(path, "r") as f:
+        dec = FrameDecoder(f[CAMERA]["frames"])
+        for a in range(0, n, step):
+            frames = dec.read(a, min(a + step, n))
+            del frames
+    return time.perf_counter() - t0, dec.fast_frames
 
 
 def intensity_pass(path: Path, region: ContactRegion, max_bytes: int = DEFAULT_CHUNK_BYTES) -> float:
@@ -187,13 +212,19 @@ def run(n: int, repeat: int, compression: FrameCompression, keep: Path | None = 
         with RunReader(path) as r:
             region = find_contact_region(r)
         rep.region_s = time.perf_counter() - t0
-        read_s, pass_s = [], []
+        decoder_read(path, min(n, 2), step)  # numba's checksum compiled or loaded from its cache
+        read_s, dec_s, pass_s = [], [], []
         for _ in range(repeat):
             read_s.append(plain_read(path, n, step))
+            dt, rep.decoder_fast_frames = decoder_read(path, n, step)
+            dec_s.append(dt)
             pass_s.append(intensity_pass(path, region))
         rep.read_fps = n / min(read_s)
+        rep.decoder_fps = n / min(dec_s)
+        rep.decoder_over_read = min(dec_s) / min(read_s)
         rep.intensity_fps = n / min(pass_s)
         rep.intensity_over_read = min(pass_s) / min(read_s)
+        rep.intensity_over_decoder = min(pass_s) / min(dec_s)
         rep.compute_fps = compute_only(path, region, step)
         for mb in MEMORY_CHUNKS_MB:
             rep.peak_mb_by_chunk_mb[str(mb)] = round(peak_memory_mb(path, region, mb), 1)
@@ -223,8 +254,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{rep.frames} frames of {W} x {H} px: {rep.pixels_mb:.0f} MB of pixels, "
           f"{rep.file_mb:.0f} MB on disk ({rep.compression}); chunks of {rep.chunk_frames} frames")
     print(f"plain h5py read   {rep.read_fps:8.0f} frames/s")
+    print(f"decoder read      {rep.decoder_fps:8.0f} frames/s  "
+          f"({rep.decoder_over_read:.2f} x the h5py read time; "
+          f"{rep.decoder_fast_frames}/{rep.frames} frames inflated by ISA-L)")
     print(f"intensity pass    {rep.intensity_fps:8.0f} frames/s  "
-          f"({rep.intensity_over_read:.2f} x the read time)")
+          f"({rep.intensity_over_read:.2f} x the h5py read time, "
+          f"{rep.intensity_over_decoder:.2f} x the decoder read time)")
     print(f"arithmetic only   {rep.compute_fps:8.0f} frames/s (one chunk in memory)")
     print(f"contact region    {rep.region_s:8.2f} s")
     print("peak memory of the pass by chunk size: " + ", ".join(
