@@ -18,6 +18,7 @@ from rigctl.data import MeasuredRun
 from rigctl.model import SimResult
 from rigctl.workbench.dataset import Dataset, prepare_dataset, protocols_present
 from rigctl.workbench.evaluate import Evaluation, evaluate
+from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.image_features import model_ratios
@@ -132,5 +133,28 @@ def compare(
     return Comparison(
         runs=list(runs), dataset=ds, fit=fit, evaluation=ev,
         errors=physical_errors(ev.score.comparisons), rmap=rmap,
-        discrepancies=discrepancies(rmap), identified=identify,
+        discrepancies=discrepancies(rmap) + image_discrepancies(ds, ev), identified=identify,
     )
+
+
+IMAGE_DISCREPANCY_Z = 3.0
+"""An image feature off by more than this many of its scatters is named among the discrepancies
+(the per-event features are named by their trends, :func:`residual_map.discrepancies`)."""
+
+
+def image_discrepancies(dataset: Dataset, ev: Evaluation) -> list[str]:
+    """The image features the model misses, in words (one per run and feature)."""
+    out: list[str] = []
+    for run, model in zip(dataset.runs, ev.images or [{} for _ in dataset.runs], strict=True):
+        if run.image is None:
+            continue
+        measured, sigma = run.image.measured(), run.image.sigma()
+        for name, value in measured.items():
+            m = model.get(name, math.nan)
+            z = (m - value) / sigma[name]
+            if math.isfinite(z) and abs(z) > IMAGE_DISCREPANCY_Z:
+                nd = max(0, 1 - math.floor(math.log10(sigma[name])))  # digits of the scatter
+                out.append(f"{FEATURES[name].phrase}: the images give {value:.{nd}f} +- "
+                           f"{sigma[name]:.{nd}f}, the model {m:.{nd}f} ({z:+.0f} scatters) "
+                           f"in {run.name}")
+    return out

@@ -151,3 +151,13 @@ def test_a_run_without_frames_compares_as_before(with_images: Comparison, rig_ru
     assert ev_img.score.error == pytest.approx(expect, rel=1e-12)
     assert ev_img.score.vector.size == ev_csv.score.vector.size + len(IMAGE_FEATURES)
     assert float(ev_img.score.vector @ ev_img.score.vector) == pytest.approx(n1 * ev_img.score.error**2)
+
+
+def test_a_model_without_the_stress_evolution_is_told_by_the_images(folder: Path) -> None:
+    path = _run_file(folder, 0.9, ())
+    classic = compare([_measured(path)], ModelChoice("classic"), identify=False)
+    assert classic.fit.feature_error["p_tilt_initial"] > 20.0  # uniform P: tilt 0 against 0.89
+    assert any(d.startswith("initial-stage stress tilts") and "the model 0.000" in d
+               for d in classic.discrepancies), classic.discrepancies
+    paper = compare([_measured(path)], PAPER, identify=False)
+    assert not any("stress tilts" in d for d in paper.discrepancies)
