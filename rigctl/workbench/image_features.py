@@ -224,7 +224,8 @@ def read_image_features(run: MeasuredRun, events: EventTable, read: ReadSettings
                 return None, "no camera frames"
             region = find_contact_region(reader)
             ci = stream_intensity(reader, region)
-    except (DataError, OSError, KeyError, ValueError) as exc:
+    except (DataError, OSError, KeyError, ValueError, RuntimeError) as exc:
+        # frames that cannot be read leave the run without an image feature, not without a compare
         return None, f"frames unusable ({exc})"
     t = ci.t_s - float(run.t_s[0])
     ok = np.isfinite(t) & np.isfinite(ci.ic)
