@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 
 run: $(STAMP)
 	@mkdir -p runs
-	$(BIN)/rigctl run tlre --speed max --out runs/tlre.h5 --force
+	$(BIN)/rigctl run tlre --config configs/make-run.toml --speed max --out runs/tlre.h5 --force
 	$(BIN)/rigctl info runs/tlre.h5
 	$(BIN)/rigctl analyse runs/tlre.h5 --out runs/analysis
 	$(BIN)/rigctl export runs/tlre.h5 --csv runs/tlre.csv --force

@@ -777,6 +777,9 @@ class RawFrame(NamedTuple):
     image: NDArray[np.uint8]
     t_monotonic_ns: int
     seq: int
+    t_device_s: float = math.nan
+    """Capture time on the DAQ's sample clock when the camera is synchronised to it (the simulated
+    camera: both run on the rig's clock); NaN when only the host time is known."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -787,6 +790,8 @@ class Frame:
     t_monotonic_ns: int
     seq: int
     dropped_before: int
+    t_device_s: float = math.nan
+    """Capture time on the DAQ's sample clock (NaN: unknown; see :class:`RawFrame`)."""
 
 
 @dataclass
@@ -794,15 +799,18 @@ class FrameDropDetector:
     """Counts frames lost before each frame: a ``seq`` gap or an interval above 1.5 periods.
 
     Lost frames = max(seq gap, round(interval * frame_rate_hz) - 1 when interval > 1.5 / rate): a
-    gap and a long interval usually describe the same loss, so they are not added.
+    gap and a long interval usually describe the same loss, so they are not added. The interval is
+    taken on the DAQ's clock when frames carry a device time (a synchronised camera: on an
+    accelerated simulated rig the host intervals are rig intervals divided by an uneven speed).
     """
 
     frame_rate_hz: float
     total_dropped: int = 0
     _last_seq: int | None = field(default=None, repr=False)
     _last_t_ns: int | None = field(default=None, repr=False)
+    _last_t_device_s: float = field(default=math.nan, repr=False)
 
-    def update(self, seq: int, t_monotonic_ns: int) -> int:
+    def update(self, seq: int, t_monotonic_ns: int, t_device_s: float = math.nan) -> int:
         """Frames lost between the previous frame and this one.
 
         Sequence numbers start at 0 at ``start()``, so a first frame numbered n means n were lost.
@@ -810,13 +818,17 @@ class FrameDropDetector:
         dropped = max(seq, 0)
         if self._last_seq is not None and self._last_t_ns is not None:
             gap = max(seq - self._last_seq - 1, 0)
-            interval_s = (t_monotonic_ns - self._last_t_ns) * 1e-9
+            if math.isfinite(t_device_s) and math.isfinite(self._last_t_device_s):
+                interval_s = t_device_s - self._last_t_device_s
+            else:
+                interval_s = (t_monotonic_ns - self._last_t_ns) * 1e-9
             late = 0
             if interval_s > 1.5 / self.frame_rate_hz:
                 late = max(round(interval_s * self.frame_rate_hz) - 1, 1)
             dropped = max(gap, late)
         self._last_seq = seq
         self._last_t_ns = t_monotonic_ns
+        self._last_t_device_s = t_device_s
         self.total_dropped += dropped
         return dropped
 
@@ -824,6 +836,7 @@ class FrameDropDetector:
         """Forget the previous frame (after a stop/start)."""
         self._last_seq = None
         self._last_t_ns = None
+        self._last_t_device_s = math.nan
 
 
 class Camera(Device):
@@ -879,8 +892,8 @@ class Camera(Device):
         raw = self._do_read_frame(wait_s)
         if raw is None:
             raise DeviceTimeout(self.name, wait_s, detail="no frame")
-        dropped = self._drops.update(raw.seq, raw.t_monotonic_ns)
-        return Frame(raw.image, raw.t_monotonic_ns, raw.seq, dropped)
+        dropped = self._drops.update(raw.seq, raw.t_monotonic_ns, raw.t_device_s)
+        return Frame(raw.image, raw.t_monotonic_ns, raw.seq, dropped, raw.t_device_s)
 
     @property
     def exposure_s(self) -> float:

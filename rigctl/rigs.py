@@ -7,7 +7,6 @@ the configuration, and (simulated backends) the running virtual rig.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import math
 import threading
 import time
@@ -44,7 +43,10 @@ class Pacer:
 
     ``speed`` caps the rig's clock at that many rig seconds per host second (``--speed N``; ``inf``
     for ``--speed max``). A rig held back by the recorder does not catch up afterwards: the cap counts
-    from where it resumed. Before :meth:`follow` a capped rig runs at ``speed``, an uncapped one
+    from where it resumed. The rig is also held within ``max_lag_s`` of the earliest rig time a
+    simulated device still owes output for (``VirtualRig.owed_s``: the camera's next frame), so a
+    camera renders every frame of its rate in rig time, and ``--speed max`` runs as fast as
+    rendering allows. Before :meth:`follow` a capped rig runs at ``speed``, an uncapped one
     waits. Every advance is pinned on the rig's clock (``SimClock.pin``), so host timestamps of
     simulated devices (camera frames) follow the rig's actual progress.
     """
@@ -99,6 +101,10 @@ class Pacer:
         self._offset = observed if self._offset is None else min(self._offset, observed)
         return observed - self._offset
 
+    def _owed_lag_s(self) -> float:
+        """Rig time minus the earliest rig time a device still owes output for (-inf: none)."""
+        return float(self.rig.t_s - self.rig.owed_s())
+
     def _advance_to(self, t_s: float) -> None:
         self.rig.advance_to(t_s)
         self.rig.clock.pin(self.rig.t_s)
@@ -118,28 +124,33 @@ class Pacer:
     def _run(self) -> None:
         try:
             last_data = float("nan")
+            last_owed = math.inf
             last_progress = time.monotonic()
             while not self._stop.is_set():
                 now = time.monotonic()
                 if self._data_time is None and math.isinf(self.speed):
                     self._stop.wait(0.001)
                     continue
+                owed = float(self.rig.owed_s())
+                if owed != last_owed:
+                    last_owed, last_progress = owed, now
+                lag = self._owed_lag_s()
                 if self._data_time is not None:
                     t_data = self._data_time()
-                    lag = self._lag_s(t_data)
+                    lag = max(lag, self._lag_s(t_data))
                     if t_data == t_data and t_data != last_data:
                         last_data, last_progress = t_data, now
-                    if lag > self.max_lag_s:
-                        self._anchor = None  # held: the speed cap restarts where the rig resumes
-                        if now - last_progress < STALL_S:  # the recorder is catching up: wait
-                            self._stop.wait(0.001)
-                            continue
-                        # no recorded data for STALL_S (a silent DAQ, a stopped acquisition): the
-                        # rig's clock goes on at real time, so timeouts and a safe-state retraction
-                        # still happen
-                        self._stop.wait(self.step_s)
-                        self._advance_to(self.rig.t_s + self.step_s)
+                if lag > self.max_lag_s:
+                    self._anchor = None  # held: the speed cap restarts where the rig resumes
+                    if now - last_progress < STALL_S:  # the recorder / camera is catching up: wait
+                        self._stop.wait(0.001)
                         continue
+                    # no recorded data and no frame for STALL_S (a silent DAQ or camera, a stopped
+                    # acquisition): the rig's clock goes on at real time, so timeouts and a
+                    # safe-state retraction still happen
+                    self._stop.wait(self.step_s)
+                    self._advance_to(self.rig.t_s + self.step_s)
+                    continue
                 target = self._capped(now)
                 if target is None:
                     self._stop.wait(TICK_S)
@@ -197,8 +208,8 @@ def open_rig(
     if backend in ("sim", "sim-wire"):
         from sim_devices.backends import build_sim_rig
 
-        # an accelerated rig renders at most about as many camera frames per host second as in
-        # real time: the camera's frame rate is lowered by the speed factor (recorded in the run)
+        # an accelerated rig keeps the configured frame rate in rig time: its pacer waits for the
+        # frames the camera still owes (VirtualRig.owe), so rendering sets how fast it can go
         cam_cfg = config.camera
         from sim_devices.contact_image import MAX_HEIGHT_PX, MAX_WIDTH_PX
 
@@ -208,17 +219,14 @@ def open_rig(
                 f"at most {MAX_WIDTH_PX} x {MAX_HEIGHT_PX} px (every frame is drawn from the "
                 "contact state in real time); set camera.width_px/height_px within that, or use "
                 "the real backend", key="camera.width_px")
-        factor = 100.0 if math.isinf(speed) else speed
-        fps = cam_cfg.frame_rate_hz / factor if factor > 1 else cam_cfg.frame_rate_hz
-        cfg = dataclasses.replace(config, camera=dataclasses.replace(cam_cfg, frame_rate_hz=fps))
         paced = speed > 1.0  # an accelerated rig must not outrun its recorder (Pacer)
         from rigctl.config.adapters import sim_settings
 
-        sim = build_sim_rig(backend, settings=sim_settings(cfg), speed=None if paced else speed,
+        sim = build_sim_rig(backend, settings=sim_settings(config), speed=None if paced else speed,
                             model=model)
         pacer = Pacer(sim.rig, speed=speed).start() if paced else None
         try:
-            yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(cfg), cfg, speed, sim,
+            yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(config), config, speed, sim,
                           pacer)
         finally:
             if pacer is not None:

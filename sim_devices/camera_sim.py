@@ -5,12 +5,17 @@ time ``t0 + j / 60`` (``t0`` = the first frame time after ``start()``) and deliv
 clock has reached it, rendered by :class:`~sim_devices.contact_image.ContactImageRenderer` from the
 rig's state at the nearest sample: Fn, the stage (initial / stable) and with it the element load
 shares P, and which elements slide. Its timestamp is the host monotonic instant at which the rig's
-clock reached ``t_j`` (``SimClock.host_ns_at``), on the same clock as the DAQ's host times.
+clock reached ``t_j`` (``SimClock.host_ns_at``), on the same clock as the DAQ's host times, and,
+while the simulated DAQ streams, its time on the DAQ's sample clock, ``t_j`` minus the rig time of
+the DAQ stream's sample 0 (``RawFrame.t_device_s``: the camera is synchronised to the DAQ, as one
+triggered by it would be), so frame times are exact however unevenly an accelerated rig advances.
 
 Frames are rendered when read, so an accelerated rig does not pay for frames nobody reads; but the
 camera's buffer holds only ``buffer_frames`` frames: a reader more than that far behind loses the
 oldest ones, which shows as a gap in ``seq`` (counted in ``frames_dropped``), as with a real
-camera's ring buffer.
+camera's ring buffer. While it runs, the camera tells the rig the time of the next frame it owes
+(``VirtualRig.owe``): an accelerated (paced) rig waits for it, so at ``--speed N|max`` every frame
+of the frame rate is rendered, in rig time, as fast as rendering allows.
 
 Faults (:mod:`sim_devices.faults`): ``silent`` (no frames: ``read_frame`` times out with
 DeviceTimeout), ``drop_pct`` (frames lost: seq gaps), ``stuck`` (the same image repeats).
@@ -70,9 +75,14 @@ class SimCamera(Camera):
         self._t0_s = math.ceil(self.rig.t_s * self._rate_hz + 1e-9) / self._rate_hz
         self._j_next = 0
         self._last_image = None
+        self.rig.owe(self, self._t0_s)
 
     def _do_stop(self) -> None:
-        """Nothing runs in the background: frames are rendered on read."""
+        """Nothing runs in the background (frames are rendered on read): the rig is owed nothing."""
+        self.rig.owe(self, None)
+
+    def _do_close(self) -> None:
+        self.rig.owe(self, None)
 
     def _do_read_frame(self, timeout_s: float) -> RawFrame | None:
         if self.faults.silent:
@@ -80,21 +90,34 @@ class SimCamera(Camera):
             return None
         rig, rate = self.rig, self._rate_hz
         deadline = time.monotonic() + timeout_s
+        t_seen = rig.t_s
         while True:
             j = self._j_next
             if not rig.wait_until(self._t0_s + j / rate, max(0.0, deadline - time.monotonic())):
                 rig.check()
+                if rig.t_s > t_seen:
+                    # the rig moves, only slower than the host clock (a paced rig computing a
+                    # loading step sample by sample): the frame is coming, the camera answers
+                    t_seen = rig.t_s
+                    deadline = time.monotonic() + timeout_s
+                    continue
                 return None
             newest = math.floor((rig.t_s - self._t0_s) * rate + 1e-9)
             j = max(j, newest - self.buffer_frames + 1)  # overwritten in the camera's buffer
             self._j_next = j + 1
+            t_j = self._t0_s + j / rate
             if self.faults.roll(self.faults.drop_pct):
+                rig.owe(self, self._t0_s + self._j_next / rate)
                 continue
             try:
-                image = self._image_at(self._t0_s + j / rate)
+                image = self._image_at(t_j)
             except SamplesLostError:
+                rig.owe(self, self._t0_s + self._j_next / rate)
                 continue
-            return RawFrame(image, rig.clock.host_ns_at(self._t0_s + j / rate), j)
+            rig.owe(self, self._t0_s + self._j_next / rate)
+            daq0 = rig.daq_stream_start_s
+            t_device = t_j - daq0 if daq0 is not None else math.nan
+            return RawFrame(image, rig.clock.host_ns_at(t_j), j, t_device)
 
     def _image_at(self, t_s: float) -> NDArray[np.uint8]:
         if self.faults.stuck and self._last_image is not None:

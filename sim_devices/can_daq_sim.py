@@ -200,10 +200,12 @@ class CanDaqSim(SimService):
             if code == Command.START:
                 if self._cursor is None:
                     self._cursor = StreamCursor(self.rig, self._rate_hz)
+                    self.rig.daq_stream_start_s = self._cursor.t0_s
                     self._wake_stream.set()
                 return pack_reply(code, Status.OK)
             if code == Command.STOP:
                 self._cursor = None
+                self.rig.daq_stream_start_s = None
                 return pack_reply(code, Status.OK)
             if code == Command.TARE:
                 self.signals.tare()

@@ -160,10 +160,12 @@ class InProcessDaq(Daq):
     def _do_start(self) -> None:
         self._check_alive("start")
         self._cursor = StreamCursor(self.rig, self.rate_hz)
+        self.rig.daq_stream_start_s = self._cursor.t0_s
 
     def _do_stop(self) -> None:
         self._check_alive("stop")
         self._cursor = None
+        self.rig.daq_stream_start_s = None
 
     def _do_tare(self) -> None:
         self._check_alive("tare")

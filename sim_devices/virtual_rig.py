@@ -16,6 +16,13 @@ so what the force sensor shows, what the probes measure and what the camera sees
   ``max_chunk_s`` per call (cruise and rest are exactly linear).
 - Thread safety: one re-entrant lock guards everything; :attr:`VirtualRig.state` returns an
   immutable snapshot (O(1)); :meth:`VirtualRig.samples` returns copies of the per-sample history.
+- Devices that produce output for rig instants after the rig reached them (the camera renders
+  frame j once the rig is at t_j) say which rig time they still owe (:meth:`VirtualRig.owe`); a
+  pacer (``rigctl.rigs.Pacer``) holds an accelerated rig within a lag of :meth:`VirtualRig.owed_s`,
+  so the camera keeps its full frame rate in rig time however fast the rig runs.
+- The simulated DAQ records the rig time of its stream's sample 0
+  (:attr:`VirtualRig.daq_stream_start_s`): the DAQ's device time of rig time t is t minus it, which
+  places camera frames on the DAQ's clock exactly (a camera synchronised to the DAQ).
 """
 
 from __future__ import annotations
@@ -192,6 +199,9 @@ class VirtualRig(SimService):
         self._state = self._snapshot()
         self.error: BaseException | None = None
         self._closed = False
+        self.daq_stream_start_s: float | None = None
+        """Rig time of the DAQ stream's sample 0 while it streams (set by the simulated DAQ)."""
+        self._owed: dict[int, float] = {}
 
     # --------------------------------------------------------------------------- properties
     @property
@@ -389,6 +399,19 @@ class VirtualRig(SimService):
         """Copies of samples k0 <= k < k1 that exist (SamplesLostError if k0 was overwritten)."""
         with self._lock:
             return self._ring.read(k0, k1)
+
+    def owe(self, owner: object, t_s: float | None) -> None:
+        """``owner`` still owes its output for rig time ``t_s`` onwards (None: owes nothing)."""
+        with self._lock:
+            if t_s is None:
+                self._owed.pop(id(owner), None)
+            else:
+                self._owed[id(owner)] = float(t_s)
+
+    def owed_s(self) -> float:
+        """The earliest rig time a device still owes output for (inf: none)."""
+        with self._lock:
+            return min(self._owed.values(), default=math.inf)
 
     def wait_for_sample(self, k: int, timeout_s: float) -> bool:
         """Block until sample ``k`` exists (True) or ``timeout_s`` passes / the rig stops (False)."""

@@ -47,6 +47,9 @@ its command timeout, which would slow the force recording)."""
 _QUEUE_PUT_TIMEOUT_S = 0.5
 _FRAME_BATCH = 32
 """Most consecutive frames written in one call."""
+FRAME_ROOM_WAIT_S = 0.5
+"""Longest a frame waits for room in the writer's queue (its share of frames full) before it is
+dropped and counted: a camera keeps its own buffer meanwhile (a real one about 2 s at 60 Hz)."""
 _IN_RANGE_HOLD_S = 1.0
 """A probe is back in range after this long without an over-range sample."""
 """Most consecutive frames written in one call."""
@@ -143,6 +146,7 @@ class Acquisition:
         self._error: BaseException | None = None
         self._lock = threading.Lock()
         self._new_data = threading.Condition(self._lock)
+        self._frame_room = threading.Condition(self._lock)
         n_hist = max(16, int(history_s * devices.daq.rate_hz))
         self._hist_t: deque[np.ndarray] = deque()
         self._hist: dict[str, deque[np.ndarray]] = {c: deque() for c in _HISTORY_CHANNELS}
@@ -275,8 +279,9 @@ class Acquisition:
             self.stats.queue_dropped_samples += samples
             self.stats.queue_dropped_frames += frames
             if frames:
-                with self._lock:
+                with self._frame_room:
                     self._queued_frames -= frames
+                    self._frame_room.notify_all()
             _log.error("writer queue full: %d samples / %d frames dropped", samples, frames)
 
     def _daq_loop(self) -> None:
@@ -416,15 +421,19 @@ class Acquisition:
         cam = self.devices.camera
         assert cam is not None
         try:
-            while not self._stop.is_set() and not self.clock.ready:
-                time.sleep(0.005)
+            with self._new_data:  # woken by the first DAQ block (a paced rig runs on meanwhile)
+                while not self._stop.is_set() and not self.clock.ready:
+                    self._new_data.wait(0.05)
             if self._stop.is_set():
                 return
             cam.start()
             last_t = -np.inf
             while not self._stop.is_set():
                 frame = cam.read_frame(timeout_s=1.0)  # DeviceTimeout: the camera stopped answering
-                t = self.clock.device_time(frame.t_monotonic_ns)
+                # a camera synchronised to the DAQ gives its frame's device time; else the host
+                # instant is placed through the clock map
+                t = (frame.t_device_s if math.isfinite(frame.t_device_s)
+                     else self.clock.device_time(frame.t_monotonic_ns))
                 if not np.isfinite(t):
                     self.stats.frames_unplaced += 1
                     continue
@@ -433,11 +442,17 @@ class Acquisition:
                 self.stats.frames += 1
                 self.stats.frames_dropped += int(frame.dropped_before)
                 self.publisher.publish("camera", (t, frame))
-                with self._lock:
+                with self._frame_room:
+                    # frames are big: their share of the buffer is bounded; a full share waits a
+                    # little for the writer (a paced simulated rig waits with the camera) before
+                    # the frame is dropped
+                    self._frame_room.wait_for(
+                        lambda: self._queued_frames < self.max_queued_frames or self._stop.is_set(),
+                        timeout=FRAME_ROOM_WAIT_S)
                     full = self._queued_frames >= self.max_queued_frames
                     if not full:
                         self._queued_frames += 1
-                if full:  # frames are big: their share of the buffer is bounded in bytes too
+                if full:
                     self.stats.queue_dropped_frames += 1
                     continue
                 self._put(("frame", frame.image, t, frame.seq, time.monotonic()), samples=0,
@@ -467,8 +482,9 @@ class Acquisition:
                             w.maybe_flush()
                         continue
                 if item[0] == "frame":
-                    with self._lock:
+                    with self._frame_room:
                         self._queued_frames -= 1
+                        self._frame_room.notify_all()
                 if w is None:
                     continue
                 kind = item[0]
@@ -489,8 +505,9 @@ class Acquisition:
                         if nxt[0] != "frame":
                             held = nxt
                             break
-                        with self._lock:
+                        with self._frame_room:
                             self._queued_frames -= 1
+                            self._frame_room.notify_all()
                         batch.append(nxt)
                     w.append_frames(np.stack([b[1] for b in batch]), [b[2] for b in batch],
                                     [b[3] for b in batch])
