@@ -170,6 +170,9 @@ def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str
         runs += simulate_campaign(model, proto, seed=seed * 100 + k, noise=noise,
                                   sample_rate_hz=rate_hz, fn_N=rig["fn_N"],
                                   velocity_m_s=v, duration_scale=1.0)
+    for run in runs:  # another lab's record: it does not state the generating rig's mass and damping
+        for key in [k for k in run.metadata if k.startswith("rig.")]:
+            del run.metadata[key]
     return runs, protocols
 
 

@@ -171,6 +171,16 @@ class OpenRig:
     pacer: Pacer | None = None
     """For ``--speed max``: call ``pacer.follow(lambda: acq.t_s)`` once the acquisition exists."""
 
+    def stated_parameters(self) -> dict[str, str]:
+        """``rig.<parameter>`` metadata for this rig's run files: the simulated rig states its
+        model's mass and drive damping (:func:`rigctl.model.simulator.stated_rig_parameters`), so
+        the workbench need not fit them; the hardware states nothing it does not know."""
+        if self.sim is None:
+            return {}
+        from rigctl.model.simulator import stated_rig_parameters
+
+        return stated_rig_parameters(self.sim.rig.model)
+
 
 def rig_limits(config: RigConfig) -> RigLimits:
     """The limits the dry run checks a plan against: the same objects the stage drivers get."""

@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
             operator=args.operator if args.operator is not None else config.rig.operator,
             notes=args.notes, config_toml=to_toml(rig.config),
             metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name,
+                      **rig.stated_parameters(),
                       **(origin.metadata() if origin is not None else {})},
         )
         on_acquisition: list[Callable[[Any], None]] = []

@@ -22,6 +22,19 @@ from rigctl.model.params import ParameterError
 from rigctl.model.result import SimResult, SlipEvent
 from rigctl.model.spec import CoreSetup, ModelSpec
 
+STATED_RIG_PARAMS = ("m_kg", "c0_N_s_per_m")
+"""Parameters a simulated run states in its metadata (:meth:`Simulator.rig_description`): a rig
+knows its moving mass and drive damping; the data of another rig, which does not state them, leave
+them to the fit."""
+
+
+def stated_rig_parameters(model: ModelSpec) -> dict[str, str]:
+    """What a simulated rig states about itself, as a lab states what it knows of its rig
+    (``rig.<parameter>`` metadata, docs/csv-format.md): its moving mass and drive damping. The
+    workbench fits these where a record does not state them (another lab's data)."""
+    values = model.values()
+    return {f"rig.{name}": f"{values[name]!r}" for name in STATED_RIG_PARAMS if name in values}
+
 SimProgressFn = Callable[[float, float], None]
 """progress(t_done_s, t_total_s)"""
 
@@ -228,12 +241,17 @@ class Simulator:
         res.metadata.update(
             {"model": self.model.describe(), "sample_rate_hz": f"{self.sample_rate_hz:g}"}
         )
+        res.metadata.update(self.rig_description())
         if noise:
             model = noise if isinstance(noise, NoiseModel) else NoiseModel()
             model.apply(res, np.random.default_rng(seed))
             res.metadata["noise"] = model.describe()
             res.metadata["seed"] = str(seed)
         return res
+
+    def rig_description(self) -> dict[str, str]:
+        """What the simulated rig states about itself (:func:`stated_rig_parameters`)."""
+        return stated_rig_parameters(self.model)
 
     def stepper(self, x_stage_m: float = 0.0, fn_N: float = 0.0) -> Stepper:
         return Stepper(self, x_stage_m, fn_N)

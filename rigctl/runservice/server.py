@@ -485,7 +485,8 @@ class RunService:
             operator=job.operator if job.operator is not None else rig.config.rig.operator,
             notes=job.notes, config_toml=to_toml(rig.config),
             metadata={"backend": self.backend, "speed": job.speed_text, "rig": rig.config.rig.name,
-                      "started_from": job.started_from, "run_service_pid": str(os.getpid())},
+                      "started_from": job.started_from, "run_service_pid": str(os.getpid()),
+                      **rig.stated_parameters()},
         )
         runner = Runner(
             protocol, given, rig.devices, rig.limits, out=None if job.dry or job.out is None

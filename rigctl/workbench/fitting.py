@@ -72,11 +72,14 @@ def identify_model(
     Two starts: the model's current values and the same carried to the data's own scale
     (:mod:`rigctl.workbench.data_scale`: a record of another rig lies decades from the preset).
     Where the data-scale start lies on another rig (:func:`_another_rig`) both are fitted and the
-    better end is kept, the data-scale one with mass and drive damping free if it also scores
-    better at the outset; else the fit starts from the better of the two by the event-aware error.
-    Each start is replaced by the ratio guess of :mod:`rigctl.workbench.guess` where that scores
-    better. Parameters the rig description fixes are set and left out of the fit; those it bounds
-    are fitted inside its range.
+    better end is kept; else the fit starts from the better of the two by the event-aware error.
+    Mass and drive damping are fitted too unless the rig description states them (a rig knows its
+    own; the simulated rig states them in every run, :data:`rigctl.model.simulator.
+    STATED_RIG_PARAMS`): the preset's are this rig's, and another rig's data, stiff or soft, heavy
+    or light, need their own (a 1.4 g slider on a preset-like stiffness otherwise had its ringing
+    explained by a false interface damper). Each start is replaced by the ratio guess of
+    :mod:`rigctl.workbench.guess` where that scores better. Parameters the rig description fixes
+    are set and left out of the fit; those it bounds are fitted inside its range.
     """
     rig = dataset.rig
     check_names(rig, [p.name for p in choice.parameter_table()])
@@ -86,16 +89,12 @@ def identify_model(
     fns = fn_range(dataset)
     if not physically_valid(choice, fns):
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
-    e_model = _error_or_inf(dataset, choice, fns)
-    starts = [(choice, e_model, False)]
+    e_model = error_or_inf(dataset, choice, fns)
+    starts = [(choice, e_model)]
     scaled = data_scaled(dataset, choice, free)
     if scaled is not None:
         another = _another_rig(choice, scaled)
-        e_scaled = _error_or_inf(dataset, scaled, fns)
-        # mass and drive damping are freed only where the data-scale start also scores better: on
-        # this rig's own data a free C0 would absorb an interface damper (the same physics up to
-        # C0 v_stage) and hide it from diagnose
-        starts.append((scaled, e_scaled, another and e_scaled < e_model))
+        starts.append((scaled, error_or_inf(dataset, scaled, fns)))
         starts.sort(key=lambda start: start[1])
         if not another:
             starts = starts[:1]
@@ -103,35 +102,33 @@ def identify_model(
         # start far from the data says little (on a reciprocating record the preset, making large
         # slips at the wrong friction level, scored 252 against 728 for the data-scale start,
         # whose fit ends at 51 while the preset's fit did not move)
-    results = [_fit_from(dataset, c, e, free, fns, free_dynamics=dyn, max_nfev=max_nfev,
-                         with_uncertainty=with_uncertainty) for c, e, dyn in starts]
+    results = [_fit_from(dataset, c, e, free, fns, max_nfev=max_nfev,
+                         with_uncertainty=with_uncertainty) for c, e in starts]
     return min(results, key=lambda r: r.error)
 
 
 def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[FreeParam],
-              fns: tuple[float, float], *, free_dynamics: bool, max_nfev: int,
-              with_uncertainty: bool) -> FitResult:
-    """The local fit from one start; with ``free_dynamics`` (another rig's data, see
-    :func:`identify_model`) its mass is scanned first and mass and drive damping are fitted too;
-    the ratio guess replaces the start where it scores better."""
+              fns: tuple[float, float], *, max_nfev: int, with_uncertainty: bool) -> FitResult:
+    """The local fit from one start: the mass, unless the rig description states it, is scanned
+    first, and mass and drive damping are fitted too; the ratio guess replaces the start where it
+    scores better."""
     rig = dataset.rig
     best_choice, e_best = choice, e_start
-    if free_dynamics:
-        # another rig: its mass and damping are guesses (data_scale.py); the post-slip dynamics
-        # (ringing, drop shape) determine them where the sampling resolves them, else the fit
-        # reports them as not determined
-        have = {fp.name for fp in free}
-        extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
-        if "m_kg" in extra:
-            best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
-                                             keep_damping="c0_N_s_per_m" in extra)
-        free = free + free_params(best_choice, extra, rig=rig)
+    # mass and damping not stated are guesses (the preset's, or data_scale.py's); the post-slip
+    # dynamics (ringing, drop shape) determine them where the sampling resolves them, else the fit
+    # reports them as not determined
+    have = {fp.name for fp in free}
+    extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
+    if "m_kg" in extra:
+        best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
+                                         keep_damping="c0_N_s_per_m" in extra)
+    free = free + free_params(best_choice, extra, rig=rig)
     start: dict[str, float] = {}
     try:
         guess = initial_guess(dataset, best_choice, free)
     except SimulationError:
         guess = {}
-    if guess and _error_or_inf(dataset, best_choice.with_values(guess), fns) <= e_best:
+    if guess and error_or_inf(dataset, best_choice.with_values(guess), fns) <= e_best:
         start = guess
     return least_squares_fit(dataset, best_choice, free, start=start, max_nfev=max_nfev,
                with_uncertainty=with_uncertainty)
@@ -146,7 +143,7 @@ def _scan_mass(dataset: Dataset, choice: ModelChoice, e_now: float, fns: tuple[f
                keep_damping: bool) -> tuple[ModelChoice, float]:
     """The best mass of MASS_SCAN_FACTORS x the start (C0 moved with sqrt(M), keeping the damping
     ratio, when it is fitted too), by the event-aware error."""
-    values = dict(choice.values)
+    values = {p.name: p.value for p in choice.parameter_table()}
     m0, c0 = values["m_kg"], values.get("c0_N_s_per_m", 0.0)
     best, e_best = choice, e_now
     for f in MASS_SCAN_FACTORS:
@@ -157,13 +154,13 @@ def _scan_mass(dataset: Dataset, choice: ModelChoice, e_now: float, fns: tuple[f
             cand = choice.with_values(trial)
         except ParameterError:
             continue
-        e = _error_or_inf(dataset, cand, fns)
+        e = error_or_inf(dataset, cand, fns)
         if e < e_best:
             best, e_best = cand, e
     return best, e_best
 
 
-def _error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:
+def error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:
     """The event-aware error of ``choice`` as a start; inf when it is not valid, cannot be run, or
     misses most of the measured slips (:func:`~rigctl.workbench.identify.misses_most_slips`)."""
     if not physically_valid(choice, fns):

@@ -54,8 +54,9 @@ FAILED_RESIDUAL = 1e3
 the model (a record of another rig) a failed point never looks better than a poor valid one."""
 FAILED_FACTOR = 100.0
 DYNAMIC_PARAMS = ("m_kg", "c0_N_s_per_m")
-"""Mass and drive damping: not fitted on this rig's data (the paper gives them); fitted on another
-rig's, where the start is only a guess (:func:`rigctl.workbench.fitting.identify_model`)."""
+"""Mass and drive damping: fitted unless the rig description states them (a rig knows its own; the
+simulated rig states them), since elsewhere the start is only a guess
+(:func:`rigctl.workbench.fitting.identify_model`)."""
 DYNAMIC_SPAN = 1e3  # mass and damping fitted within a factor 1000 of their start either way
 
 
