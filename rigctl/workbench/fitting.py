@@ -73,11 +73,12 @@ def identify_model(
     (:mod:`rigctl.workbench.data_scale`: a record of another rig lies decades from the preset).
     Where the data-scale start lies on another rig (:func:`_another_rig`) both are fitted and the
     better end is kept; else the fit starts from the better of the two by the event-aware error.
-    Mass and drive damping are fitted too unless the rig description states them (a rig knows its
-    own; the simulated rig states them in every run, :data:`rigctl.model.simulator.
-    STATED_RIG_PARAMS`): the preset's are this rig's, and another rig's data, stiff or soft, heavy
-    or light, need their own (a 1.4 g slider on a preset-like stiffness otherwise had its ringing
-    explained by a false interface damper). Each start is replaced by the ratio guess of
+    Mass and drive damping are fitted too (from the data-scale start where both are fitted) unless
+    the rig description states them (a rig knows its own; the simulated rig states them in every
+    run, :data:`rigctl.model.simulator.STATED_RIG_PARAMS`): the preset's are this rig's, and
+    another rig's data, stiff or soft, heavy or light, need their own (a 1.4 g slider on a
+    preset-like stiffness otherwise had its ringing explained by a false interface damper). Each
+    start is replaced by the ratio guess of
     :mod:`rigctl.workbench.guess` where that scores better. Parameters the rig description fixes
     are set and left out of the fit; those it bounds are fitted inside its range.
     """
@@ -90,39 +91,44 @@ def identify_model(
     if not physically_valid(choice, fns):
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
     e_model = error_or_inf(dataset, choice, fns)
-    starts = [(choice, e_model)]
+    starts = [(choice, e_model, True)]
     scaled = data_scaled(dataset, choice, free)
     if scaled is not None:
         another = _another_rig(choice, scaled)
-        starts.append((scaled, error_or_inf(dataset, scaled, fns)))
-        starts.sort(key=lambda start: start[1])
-        if not another:
-            starts = starts[:1]
-        # on another rig's data both starts are fitted and the better end is kept: the error of a
-        # start far from the data says little (on a reciprocating record the preset, making large
-        # slips at the wrong friction level, scored 252 against 728 for the data-scale start,
-        # whose fit ends at 51 while the preset's fit did not move)
-    results = [_fit_from(dataset, c, e, free, fns, max_nfev=max_nfev,
-                         with_uncertainty=with_uncertainty) for c, e in starts]
+        if another:
+            # on another rig's data both starts are fitted and the better end is kept: the error
+            # of a start far from the data says little (on a reciprocating record the preset,
+            # making large slips at the wrong friction level, scored 252 against 728 for the
+            # data-scale start, whose fit ends at 51 while the preset's fit did not move); the
+            # preset's start keeps its mass and damping there (a mass scan from it would search
+            # decades away from the data, and small masses cost the engine most)
+            starts = [(choice, e_model, False), (scaled, error_or_inf(dataset, scaled, fns), True)]
+        else:
+            starts = [min([*starts, (scaled, error_or_inf(dataset, scaled, fns), True)],
+                          key=lambda start: start[1])]
+    results = [_fit_from(dataset, c, e, free, fns, free_dynamics=dyn, max_nfev=max_nfev,
+                         with_uncertainty=with_uncertainty) for c, e, dyn in starts]
     return min(results, key=lambda r: r.error)
 
 
 def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[FreeParam],
-              fns: tuple[float, float], *, max_nfev: int, with_uncertainty: bool) -> FitResult:
-    """The local fit from one start: the mass, unless the rig description states it, is scanned
-    first, and mass and drive damping are fitted too; the ratio guess replaces the start where it
-    scores better."""
+              fns: tuple[float, float], *, free_dynamics: bool, max_nfev: int,
+              with_uncertainty: bool) -> FitResult:
+    """The local fit from one start; with ``free_dynamics`` the mass, unless the rig description
+    states it, is scanned first, and mass and drive damping are fitted too; the ratio guess
+    replaces the start where it scores better."""
     rig = dataset.rig
     best_choice, e_best = choice, e_start
-    # mass and damping not stated are guesses (the preset's, or data_scale.py's); the post-slip
-    # dynamics (ringing, drop shape) determine them where the sampling resolves them, else the fit
-    # reports them as not determined
-    have = {fp.name for fp in free}
-    extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
-    if "m_kg" in extra:
-        best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
-                                         keep_damping="c0_N_s_per_m" in extra)
-    free = free + free_params(best_choice, extra, rig=rig)
+    if free_dynamics:
+        # mass and damping not stated are guesses (the preset's, or data_scale.py's); the
+        # post-slip dynamics (ringing, drop shape) determine them where the sampling resolves
+        # them, else the fit reports them as not determined
+        have = {fp.name for fp in free}
+        extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
+        if "m_kg" in extra:
+            best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
+                                             keep_damping="c0_N_s_per_m" in extra)
+        free = free + free_params(best_choice, extra, rig=rig)
     start: dict[str, float] = {}
     try:
         guess = initial_guess(dataset, best_choice, free)
