@@ -426,9 +426,11 @@ def uncertainties(
 
     ``resolution``: columns whose residual is a staircase (:meth:`HybridJacobian._column`) and the
     step of their secant; such a parameter's sigma is at least that step, since the data do not
-    locate it more finely."""
+    locate it more finely. The residuals are in units of the measured scatter, so their variance
+    is taken as at least 1: a fit inside the scatter floors (the force features of a simulated run
+    fit 5-20 times inside theirs) does not locate its parameters better than the noise allows."""
     m, p = J.shape
-    s2 = float(residual @ residual) / max(m - p, 1)
+    s2 = max(float(residual @ residual) / max(m - p, 1), 1.0)
     col_norm = np.linalg.norm(J, axis=0)
     cov = np.linalg.pinv(J.T @ J, rcond=1e-10) * s2
     sig_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
