@@ -157,6 +157,30 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
     return "nothing (no residual structure removed)"
 
 
+POLISH_MIN_GAIN = 0.03
+"""A further least-squares pass of the final model is run while the last one removed at least this
+fraction of its error (:func:`polish`)."""
+POLISH_MAX_PASSES = 3
+
+
+def polish(dataset: Dataset, result: FitResult) -> FitResult:
+    """The final model of ``--auto`` fitted on while it still gains: passes of PRUNE_MAX_NFEV
+    evaluations (the budget of each refit without an effect that it is then compared with), at most
+    POLISH_MAX_PASSES, stopping once a pass gains less than POLISH_MIN_GAIN. The candidate fits
+    that chose each effect are short (a dozen candidates per round), so the model with all its
+    effects may stop short of its minimum while the refit without one starts from there."""
+    free = free_params(result.choice, list(result.free))
+    best = result
+    for _ in range(POLISH_MAX_PASSES):
+        nxt = least_squares_fit(dataset, best.choice, free, max_nfev=PRUNE_MAX_NFEV)
+        gain = (best.error - nxt.error) / best.error if best.error > 0 else 0.0
+        if nxt.error < best.error:
+            best = nxt
+        if gain < POLISH_MIN_GAIN:
+            break
+    return result if best is result else refine(dataset, best)
+
+
 def refine(dataset: Dataset, result: FitResult) -> FitResult:
     """Re-identify a chosen model with a fresh Jacobian (for uncertainties and the next round)."""
     free = free_params(result.choice, list(result.free))
@@ -356,7 +380,12 @@ def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: 
     removed (the model refitted without it), and the last round's verdict says what no library
     effect explains. A lone added effect is so judged against the baseline; of two hidden effects
     each alone removes only part of the error, but in the final model each halves it."""
-    model = diag.rounds[-1].model
+    model = polish(dataset, diag.rounds[-1].model)
+    if model.error < diag.rounds[-1].model.error:
+        say(f"{model.choice.label()} fitted on: error {diag.rounds[-1].model.error:.3g} -> "
+            f"{model.error:.3g}")
+        diag.steps[-1].error = model.error
+        diag.rounds[-1].model = model
     for effect in [st.added for st in diag.steps if st.added]:
         if effect not in model.choice.effects:
             continue
