@@ -34,9 +34,9 @@ FLAT_HALF_WIDTH = 0.025
 
 def _widen_flat_axes(fig: Figure) -> None:
     for ax in fig.axes:
-        if ax.get_yscale() != "linear":
+        if ax.get_yscale() != "linear" or ax.images:  # an image's rows are never "flat"
             continue
-        lo, hi = ax.get_ylim()
+        lo, hi = sorted(ax.get_ylim())  # an inverted axis (images, depth) has lo > hi
         mid = 0.5 * (lo + hi)
         if mid != 0.0 and np.isfinite(mid) and hi - lo < FLAT_SPAN * abs(mid):
             ax.set_ylim(mid - FLAT_HALF_WIDTH * abs(mid), mid + FLAT_HALF_WIDTH * abs(mid))
