@@ -280,13 +280,19 @@ def _scan(
 
 def _vector_or_none(dataset: Dataset, choice: ModelChoice,
                     fns: tuple[float, float]) -> np.ndarray | None:
-    """The model's residual vector, or None when it is not physically valid or cannot be run."""
+    """The model's residual vector, or None when it is not physically valid, cannot be run, or
+    misses most of the measured slips (no description of the data, whatever its error: a scan
+    point or step there would lead the fit into the no-slip trap, see
+    :func:`~rigctl.workbench.identify.misses_most_slips`)."""
     if not physically_valid(choice, fns):
         return None
     try:
-        return evaluate(dataset, choice).score.vector
+        score = evaluate(dataset, choice).score
     except SimulationError:
         return None
+    if misses_most_slips(dataset, score.comparisons):
+        return None
+    return score.vector
 
 
 def _rank_points(
@@ -452,10 +458,12 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
             max_nfev=CANDIDATE_MAX_NFEV, with_uncertainty=with_uncertainty)
         for _, start in starts
     ]
-    result = min(fits, key=lambda r: r.error)
+    valid = [r for r in fits if error_or_inf(dataset, r.choice, fn_range(dataset)) < np.inf]
+    result = min(valid or fits, key=lambda r: r.error)
     result.n_evaluations = sum(r.n_evaluations for r in fits)
-    if result.error > base.error and offs:
-        # nothing better than leaving the effect off: report the base model with the effect off
+    if (result.error > base.error or not valid) and offs:
+        # nothing better than leaving the effect off, or every end misses most of the slips (a
+        # trap, not a fit: identify.MAX_MISSING_FRACTION): report the base model, effect off
         off_choice = choice.with_values({**dict(base.choice.values), **offs})
         result = FitResult(
             choice=off_choice, error=base.error, feature_error=dict(base.feature_error),
