@@ -60,9 +60,17 @@ def _diagnose(campaign: tuple[Path, Path], candidates: str) -> subprocess.Popen[
     camp, plugin = campaign
     cmd = [sys.executable, "-m", "rigctl.cli.main", "model", "diagnose", str(camp),
            "--effect-file", str(plugin), "--candidates", candidates, "--workers", "2"]
-    # a session of its own: the process group a terminal would have, and os.killpg reaches it all
+    # a session of its own: the process group a terminal would have, and os.killpg reaches it all;
+    # SIGINT at its default action and unblocked, as in a terminal's foreground job (a child
+    # inherits an ignored or blocked SIGINT from whatever started the test run, and Python then
+    # never raises KeyboardInterrupt: twice in full-suite runs the command ignored the Ctrl-C)
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_sigint_default)
+
+
+def _sigint_default() -> None:
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _descendants(pid: int) -> dict[int, psutil.Process]:
