@@ -35,11 +35,12 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 from rigctl.workbench.ranking import (
-    HALVING,
     MIN_ERROR_REDUCTION,
     CandidateScore,
     Verdict,
     VerdictKind,
+    earns_its_place,
+    excess_error,
     rank,
     score_candidate,
     suggest_runs,
@@ -375,9 +376,10 @@ def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
 
 
 def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: Progress) -> None:
-    """Every effect ``--auto`` added must, in the final model, at least halve the error: the model
-    refitted without it must be at least twice as wrong (ranking.HALVING). One that does not is
-    removed (the model refitted without it), and the last round's verdict says what no library
+    """Every effect ``--auto`` added must, in the final model, at least halve the error the scatter
+    does not account for: the model refitted without it must be at least twice as wrong above the
+    scatter (:func:`ranking.earns_its_place`; well above the scatter, twice E). One that does not
+    is removed (the model refitted without it), and the last round's verdict says what no library
     effect explains. A lone added effect is so judged against the baseline; of two hidden effects
     each alone removes only part of the error, but in the final model each halves it."""
     model = polish(dataset, diag.rounds[-1].model)
@@ -394,15 +396,16 @@ def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: 
                                   with_uncertainty=False, max_nfev=PRUNE_MAX_NFEV)
         except (ParameterError, SimulationError):
             continue
-        if model.error <= HALVING * rest.error:
+        if earns_its_place(model.error, rest.error):
             continue
         say(f"removing {effect}: without it the error is {rest.error:.3g}, with it "
-            f"{model.error:.3g} (it does not halve it)")
+            f"{model.error:.3g} (above the scatter {excess_error(rest.error):.3g} -> "
+            f"{excess_error(model.error):.3g}: it does not halve it)")
         model = refine(dataset, rest)
         diag.steps.append(DiagnosisStep(
             len(diag.steps), model.choice.label(), None, model.error, None,
-            f"removed {effect}: it does not halve the error ({rest.error:.3g} without it, "
-            f"{diag.rounds[-1].model.error:.3g} with it)"))
+            f"removed {effect}: it does not halve the error above the scatter ({rest.error:.3g} "
+            f"without it, {diag.rounds[-1].model.error:.3g} with it)"))
         last = diag.rounds[-1]
         text = unexplained_text(None, model.error, discrepancies(residual_map(
             dataset, evaluate(dataset, model.choice).score.comparisons)))

@@ -1,0 +1,75 @@
+"""Every effect ``--auto`` added must halve the error the scatter does not account for.
+
+The rule (:func:`rigctl.workbench.ranking.earns_its_place`) on its own, and the pruning of a final
+model (:func:`rigctl.workbench.diagnose._keep_effects_that_earn_their_place`) with the refits
+replaced by given errors: what is under test is which effect goes and what the steps say, not the
+fitting.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rigctl.model import build_model
+from rigctl.workbench import diagnose as dg
+from rigctl.workbench.campaigns import simulate_campaign
+from rigctl.workbench.dataset import prepare_dataset
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import Verdict, earns_its_place, excess_error
+
+
+def test_excess_error_is_what_the_scatter_does_not_account_for():
+    assert excess_error(0.8) == 0.0 and excess_error(1.0) == 0.0
+    assert excess_error(math.sqrt(5.0)) == pytest.approx(2.0)
+    assert excess_error(30.0) == pytest.approx(30.0, rel=1e-3)
+
+
+@pytest.mark.parametrize(("with_it", "without", "kept"), [
+    (10.0, 20.0, True), (10.0, 19.0, False),  # well above the scatter: halving E itself
+    (1.68, 3.28, True),  # near the scatter: 49 % of E, 57 % of the excess (3.12 -> 1.35)
+    (2.93, 4.46, False),  # 34 % of E, 37 % of the excess
+    (1.0, 1.2, False),  # within the scatter without it: E^2 gains only 0.44
+    (0.9, 1.1, False), (0.5, 1.1, True),  # E^2 gains 0.4; 0.96
+    (math.inf, 5.0, False), (5.0, math.inf, True),
+])
+def test_an_effect_earns_its_place_by_halving_the_excess(with_it, without, kept):
+    assert earns_its_place(with_it, without) is kept
+
+
+def _fit(choice: ModelChoice, error: float) -> FitResult:
+    return FitResult(choice, error, {}, ())
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    model = build_model("paper", params={"mu_s": 0.145, "mu_k": 0.1})
+    return prepare_dataset(simulate_campaign(model, "tlre", seed=3, duration_scale=0.3))
+
+
+def test_pruning_removes_the_effect_that_does_not_halve_the_excess(dataset, monkeypatch):
+    both = ModelChoice("paper", ("wear", "presliding"))
+    refit_errors = {("presliding",): 3.28, ("wear",): 2.0, (): 3.5}
+    monkeypatch.setattr(dg, "polish", lambda _ds, result: result)
+    monkeypatch.setattr(dg, "refine", lambda _ds, result: result)
+    monkeypatch.setattr(dg, "identify_model", lambda _ds, choice, **_kw: _fit(
+        choice, refit_errors[choice.effects]))
+    final = _fit(both, 1.68)
+    diag = dg.Diagnosis(dataset, [dg.Round(final, [], Verdict("none", [], None), {}, [])],
+                        steps=[dg.DiagnosisStep(0, "paper", None, 3.5, None),
+                               dg.DiagnosisStep(1, "paper+wear", "wear", 2.0, -30.0),
+                               dg.DiagnosisStep(2, both.label(), "presliding", 1.68, -20.0)])
+    said: list[str] = []
+    dg._keep_effects_that_earn_their_place(dataset, diag, said.append)
+    # wear: 3.28 without it, 1.68 with it -> kept (excess 3.12 -> 1.35);
+    # presliding: 2.0 without it, 1.68 with it -> removed
+    assert diag.rounds[-1].model.choice.effects == ("wear",)
+    assert diag.steps[-1].added is None
+    assert diag.steps[-1].note.startswith("removed presliding: it does not halve the error above "
+                                          "the scatter (2 without it, 1.68 with it)")
+    assert any(s.startswith("removing presliding") for s in said) and len(said) == 1
+    # a round of the pruned model closes the diagnosis; E^2 = 4 is not above twice the scatter, so
+    # it has no misfit left to call unexplained
+    assert len(diag.rounds) == 2 and diag.rounds[-1].verdict.unexplained == ""
