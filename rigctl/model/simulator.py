@@ -23,7 +23,7 @@ from rigctl.model.result import SimResult, SlipEvent
 from rigctl.model.spec import CoreSetup, ModelSpec
 
 STATED_RIG_PARAMS = ("m_kg", "c0_N_s_per_m")
-"""Parameters a simulated run states in its metadata (:meth:`Simulator.rig_description`): a rig
+"""Parameters a simulated run states in its metadata (:func:`stated_rig_parameters`): a rig
 knows its moving mass and drive damping; the data of another rig, which does not state them, leave
 them to the fit."""
 
@@ -241,17 +241,13 @@ class Simulator:
         res.metadata.update(
             {"model": self.model.describe(), "sample_rate_hz": f"{self.sample_rate_hz:g}"}
         )
-        res.metadata.update(self.rig_description())
+        res.metadata.update(stated_rig_parameters(self.model))
         if noise:
             model = noise if isinstance(noise, NoiseModel) else NoiseModel()
             model.apply(res, np.random.default_rng(seed))
             res.metadata["noise"] = model.describe()
             res.metadata["seed"] = str(seed)
         return res
-
-    def rig_description(self) -> dict[str, str]:
-        """What the simulated rig states about itself (:func:`stated_rig_parameters`)."""
-        return stated_rig_parameters(self.model)
 
     def stepper(self, x_stage_m: float = 0.0, fn_N: float = 0.0) -> Stepper:
         return Stepper(self, x_stage_m, fn_N)

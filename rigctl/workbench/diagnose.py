@@ -184,8 +184,13 @@ def polish(dataset: Dataset, result: FitResult) -> FitResult:
 
 def refine(dataset: Dataset, result: FitResult) -> FitResult:
     """Re-identify a chosen model with a fresh Jacobian (for uncertainties and the next round)."""
-    free = free_params(result.choice, list(result.free))
-    return least_squares_fit(dataset, result.choice, free, max_nfev=8, with_uncertainty=True)
+    return refit(dataset, result.choice, result.free)
+
+
+def refit(dataset: Dataset, choice: ModelChoice, free_names: Sequence[str]) -> FitResult:
+    """A short least-squares fit of ``free_names`` from ``choice``'s values, with uncertainties."""
+    free = free_params(choice, list(free_names))
+    return least_squares_fit(dataset, choice, free, max_nfev=8, with_uncertainty=True)
 
 
 def better_model(dataset: Dataset, model: FitResult, fits: dict[str, FitResult]) -> FitResult | None:
@@ -208,11 +213,9 @@ def better_model(dataset: Dataset, model: FitResult, fits: dict[str, FitResult])
             best = (e, name)
     if best is None:
         return None
-    start = without_effect(fits[best[1]].choice, best[1])
-    refit = least_squares_fit(dataset, start, free_params(start, list(model.free)),
-                              max_nfev=8, with_uncertainty=True)
-    refit.message = f"refitted from {best[1]}'s fit without it ({model.error:.3g} -> {refit.error:.3g})"
-    return refit if refit.error < model.error else None
+    again = refit(dataset, without_effect(fits[best[1]].choice, best[1]), model.free)
+    again.message = f"refitted from {best[1]}'s fit without it ({model.error:.3g} -> {again.error:.3g})"
+    return again if again.error < model.error else None
 
 
 def cost_order(

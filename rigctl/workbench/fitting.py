@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from dataclasses import dataclass
 
@@ -51,6 +52,7 @@ from rigctl.workbench.identify import (
     misses_most_slips,
     physically_valid,
 )
+from rigctl.workbench.metrics import Score
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.rig_description import check_names
 
@@ -167,17 +169,23 @@ def _scan_mass(dataset: Dataset, choice: ModelChoice, e_now: float, fns: tuple[f
 
 
 def error_or_inf(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> float:
-    """The event-aware error of ``choice`` as a start; inf when it is not valid, cannot be run, or
-    misses most of the measured slips (:func:`~rigctl.workbench.identify.misses_most_slips`)."""
+    """The event-aware error of ``choice`` as a start; inf where :func:`_score_or_none` has none."""
+    score = _score_or_none(dataset, choice, fns)
+    return float("inf") if score is None else float(score.error)
+
+
+def _score_or_none(dataset: Dataset, choice: ModelChoice, fns: tuple[float, float]) -> Score | None:
+    """The model's score, or None when it is not physically valid, cannot be run, or misses most of
+    the measured slips (no description of the data, whatever its error: a start, scan point or
+    step there would lead the fit into the no-slip trap, see
+    :func:`~rigctl.workbench.identify.misses_most_slips`)."""
     if not physically_valid(choice, fns):
-        return float("inf")
+        return None
     try:
         score = evaluate(dataset, choice).score
     except SimulationError:
-        return float("inf")
-    if misses_most_slips(dataset, score.comparisons):
-        return float("inf")
-    return float(score.error)
+        return None
+    return None if misses_most_slips(dataset, score.comparisons) else score
 
 
 def _another_rig(model: ModelChoice, scaled: ModelChoice) -> bool:
@@ -280,19 +288,9 @@ def _scan(
 
 def _vector_or_none(dataset: Dataset, choice: ModelChoice,
                     fns: tuple[float, float]) -> np.ndarray | None:
-    """The model's residual vector, or None when it is not physically valid, cannot be run, or
-    misses most of the measured slips (no description of the data, whatever its error: a scan
-    point or step there would lead the fit into the no-slip trap, see
-    :func:`~rigctl.workbench.identify.misses_most_slips`)."""
-    if not physically_valid(choice, fns):
-        return None
-    try:
-        score = evaluate(dataset, choice).score
-    except SimulationError:
-        return None
-    if misses_most_slips(dataset, score.comparisons):
-        return None
-    return score.vector
+    """The model's residual vector, or None where :func:`_score_or_none` has no score."""
+    score = _score_or_none(dataset, choice, fns)
+    return None if score is None else score.vector
 
 
 def _rank_points(
@@ -458,7 +456,7 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
             max_nfev=CANDIDATE_MAX_NFEV, with_uncertainty=with_uncertainty)
         for _, start in starts
     ]
-    valid = [r for r in fits if error_or_inf(dataset, r.choice, fn_range(dataset)) < np.inf]
+    valid = [r for r in fits if not r.misses_most_slips and math.isfinite(r.error)]
     result = min(valid or fits, key=lambda r: r.error)
     result.n_evaluations = sum(r.n_evaluations for r in fits)
     if (result.error > base.error or not valid) and offs:

@@ -114,6 +114,8 @@ class FitResult:
     elapsed_s: float = 0.0
     cpu_s: float = 0.0
     """Wall and CPU seconds of the fit (candidate fits; on a busy machine wall > CPU)."""
+    misses_most_slips: bool = False
+    """The fitted model misses most measured slips (:func:`misses_most_slips`): a trap, not a fit."""
 
     @property
     def n_params(self) -> int:
@@ -512,4 +514,5 @@ def least_squares_fit(
         n_evaluations=obj.n_evaluations + 1,
         message=message,
         jacobian=None if J is None else np.array(J),
+        misses_most_slips=misses_most_slips(dataset, ev.score.comparisons),
     )
