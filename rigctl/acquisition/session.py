@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import DeviceTimeout
-from drivers.interfaces import Camera, Daq, DaqBlock, DisplacementProbe, LoadingStage
+from drivers.interfaces import Camera, Daq, DaqBlock, DisplacementProbe, Frame, LoadingStage
 from drivers.safety import ForceGuard, StaleReadingGuard
 from rigctl.acquisition.clockmap import ClockMap
 from rigctl.acquisition.publisher import Publisher
@@ -89,7 +89,8 @@ class AcquisitionStats:
     frames_dropped: int = 0
     """Camera frames lost (sequence gaps, late frames)."""
     frames_unplaced: int = 0
-    """Frames captured before the first DAQ block, when no device time could be given to them."""
+    """Frames whose time the clock map could not place (host-stamped frames are held until the
+    first DAQ block fits it)."""
     queue_dropped_samples: int = 0
     """Samples refused because the writer queue stayed full (the writer could not keep up)."""
     queue_dropped_frames: int = 0
@@ -161,14 +162,29 @@ class Acquisition:
         self._threads: list[threading.Thread] = []
         self._final_status: tuple[RunStatus, str | None] = (RunStatus.COMPLETED, None)
         self._started = False
+        self._camera_start_error: BaseException | None = None
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> Acquisition:
-        """Start the DAQ stream, then the threads (camera after the first DAQ block)."""
+        """Start the DAQ stream and the camera together, then the threads.
+
+        The camera starts here, right after the DAQ, not in its thread: a thread may be scheduled
+        late on a busy machine, and a simulated rig paced against the recorder runs on meanwhile,
+        so the first frames would come up to a second after the first samples. Its frames are read
+        as they come; those stamped only by the host wait for the first DAQ block (the clock map
+        places them). A camera that does not start fails the run as one that stops answering does
+        (:meth:`check`)."""
         if self._started:
             return self
         self._started = True
         self.devices.daq.start()
+        if self.record_camera:
+            cam = self.devices.camera
+            assert cam is not None
+            try:
+                cam.start()
+            except Exception as exc:  # reported by the camera thread, the DAQ records on
+                self._camera_start_error = exc
         targets = [(self._daq_loop, "acq-daq"), (self._writer_loop, "acq-writer")]
         if self.record_camera:
             targets.append((self._camera_loop, "acq-camera"))
@@ -421,48 +437,58 @@ class Acquisition:
         cam = self.devices.camera
         assert cam is not None
         try:
-            with self._new_data:  # woken by the first DAQ block (a paced rig runs on meanwhile)
-                while not self._stop.is_set() and not self.clock.ready:
-                    self._new_data.wait(0.05)
-            if self._stop.is_set():
-                return
-            cam.start()
+            if self._camera_start_error is not None:
+                raise self._camera_start_error
             last_t = -np.inf
+            early: deque[Frame] = deque()  # host-stamped frames read before the DAQ clock map
             while not self._stop.is_set():
                 frame = cam.read_frame(timeout_s=1.0)  # DeviceTimeout: the camera stopped answering
-                # a camera synchronised to the DAQ gives its frame's device time; else the host
-                # instant is placed through the clock map
-                t = (frame.t_device_s if math.isfinite(frame.t_device_s)
-                     else self.clock.device_time(frame.t_monotonic_ns))
-                if not np.isfinite(t):
-                    self.stats.frames_unplaced += 1
+                if not math.isfinite(frame.t_device_s) and not self.clock.ready:
+                    # placed once the first DAQ block fits the clock map; at most a queue's share
+                    if len(early) >= self.max_queued_frames:
+                        early.popleft()
+                        self.stats.queue_dropped_frames += 1
+                    early.append(frame)
                     continue
-                t = max(t, last_t + 1e-6)  # the clock fit may move; keep frame times increasing
-                last_t = t
-                self.stats.frames += 1
-                self.stats.frames_dropped += int(frame.dropped_before)
-                self.publisher.publish("camera", (t, frame))
-                with self._frame_room:
-                    # frames are big: their share of the buffer is bounded; a full share waits a
-                    # little for the writer (a paced simulated rig waits with the camera) before
-                    # the frame is dropped
-                    self._frame_room.wait_for(
-                        lambda: self._queued_frames < self.max_queued_frames or self._stop.is_set(),
-                        timeout=FRAME_ROOM_WAIT_S)
-                    full = self._queued_frames >= self.max_queued_frames
-                    if not full:
-                        self._queued_frames += 1
-                if full:
-                    self.stats.queue_dropped_frames += 1
-                    continue
-                self._put(("frame", frame.image, t, frame.seq, time.monotonic()), samples=0,
-                          frames=1)
+                while early:
+                    last_t = self._queue_frame(early.popleft(), last_t)
+                last_t = self._queue_frame(frame, last_t)
         except DeviceTimeout as exc:
             if not self._stop.is_set():  # no frame while recording: the camera stopped answering
                 self._fail(exc, "camera")
             # no frame while the session stops is only the end of the stream
         except BaseException as exc:
             self._fail(exc, "camera")
+
+    def _queue_frame(self, frame: Frame, last_t: float) -> float:
+        """Place ``frame`` on the DAQ's time axis, publish it and queue it for the writer; the
+        newest frame time so far (frames whose time cannot be placed are counted, not queued)."""
+        # a camera synchronised to the DAQ gives its frame's device time; else the host instant is
+        # placed through the clock map
+        t = (frame.t_device_s if math.isfinite(frame.t_device_s)
+             else self.clock.device_time(frame.t_monotonic_ns))
+        if not np.isfinite(t):
+            self.stats.frames_unplaced += 1
+            return last_t
+        t = max(t, last_t + 1e-6)  # the clock fit may move; keep frame times increasing
+        self.stats.frames += 1
+        self.stats.frames_dropped += int(frame.dropped_before)
+        self.publisher.publish("camera", (t, frame))
+        with self._frame_room:
+            # frames are big: their share of the buffer is bounded; a full share waits a little
+            # for the writer (a paced simulated rig waits with the camera) before the frame is
+            # dropped
+            self._frame_room.wait_for(
+                lambda: self._queued_frames < self.max_queued_frames or self._stop.is_set(),
+                timeout=FRAME_ROOM_WAIT_S)
+            full = self._queued_frames >= self.max_queued_frames
+            if not full:
+                self._queued_frames += 1
+        if full:
+            self.stats.queue_dropped_frames += 1
+            return t
+        self._put(("frame", frame.image, t, frame.seq, time.monotonic()), samples=0, frames=1)
+        return t
 
     def _writer_loop(self) -> None:
         w = self.writer

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from pathlib import Path
 
 import h5py
@@ -82,3 +83,85 @@ def test_speed_max_records_every_frame_of_the_rate_on_the_daq_clock(tmp_path: Pa
 
     assert worst_misfit(0.0) < bound, (worst_misfit(0.0), bound)
     assert worst_misfit(-1.0 / RATE_HZ) > bound and worst_misfit(1.0 / RATE_HZ) > bound
+
+
+def test_a_camera_thread_that_starts_late_loses_no_frame_at_the_start(tmp_path: Path,
+                                                                       monkeypatch) -> None:
+    """On a busy machine the camera's thread may first run long after the DAQ's; the camera is
+    started with the DAQ (``Acquisition.start``), so the paced rig waits for its frames and the
+    first one is at the first DAQ sample, however late the thread reads it."""
+    late_s = 1.0
+    original = Acquisition._camera_loop
+
+    def late_loop(self: Acquisition) -> None:
+        time.sleep(late_s)
+        original(self)
+
+    monkeypatch.setattr(Acquisition, "_camera_loop", late_loop)
+    cfg = default_config()
+    cfg = dataclasses.replace(cfg, camera=dataclasses.replace(
+        cfg.camera, width_px=W, height_px=H, frame_rate_hz=RATE_HZ))
+    path = tmp_path / "run.h5"
+    with open_rig("sim", cfg, speed=math.inf) as rig:
+        assert rig.pacer is not None
+        writer = RunWriter(path, RunDescription(protocol="test"), DaqLayout(),
+                           CameraLayout(H, W, frame_rate_hz=RATE_HZ), min_free_bytes=0)
+        acq = Acquisition(rig.devices, writer)
+        rig.pacer.follow(lambda: acq.t_s)
+        acq.start()
+        assert acq.wait_until(1.5, 60)
+        stats = acq.stop()
+    assert not stats.errors and stats.frames_dropped == 0 and stats.queue_dropped_frames == 0
+    with h5py.File(path, "r") as f:
+        t_daq = f["entry/daq/time"][:]
+        t = f["entry/camera/time"][:]
+        seq = f["entry/camera/seq"][:]
+    assert t.size > 30
+    np.testing.assert_array_equal(np.diff(seq), 1)
+    # the first frame is the first of the rate after the DAQ started, not one second later
+    assert t_daq[0] <= t[0] < t_daq[0] + 1.0 / RATE_HZ + 1e-9, (t_daq[0], t[0])
+
+
+def test_host_stamped_frames_before_the_first_daq_block_are_placed_not_lost(tmp_path: Path,
+                                                                           monkeypatch) -> None:
+    """A camera that is not synchronised to the DAQ gives only a host instant; frames it takes
+    before the first DAQ block (here the DAQ's thread starts 0.5 s late) wait until the block's
+    clock map places them, then are queued in order."""
+    from sim_devices.camera_sim import SimCamera
+
+    synced_read = SimCamera._do_read_frame
+
+    def host_stamped(self: SimCamera, timeout_s: float):  # type: ignore[no-untyped-def]
+        raw = synced_read(self, timeout_s)
+        return None if raw is None else raw._replace(t_device_s=math.nan)
+
+    original_daq = Acquisition._daq_loop
+
+    def late_daq(self: Acquisition) -> None:
+        time.sleep(0.5)
+        original_daq(self)
+
+    monkeypatch.setattr(SimCamera, "_do_read_frame", host_stamped)
+    monkeypatch.setattr(Acquisition, "_daq_loop", late_daq)
+    cfg = default_config()
+    cfg = dataclasses.replace(cfg, camera=dataclasses.replace(
+        cfg.camera, width_px=W, height_px=H, frame_rate_hz=RATE_HZ))
+    path = tmp_path / "run.h5"
+    with open_rig("sim", cfg, speed=math.inf) as rig:
+        assert rig.pacer is not None
+        writer = RunWriter(path, RunDescription(protocol="test"), DaqLayout(),
+                           CameraLayout(H, W, frame_rate_hz=RATE_HZ), min_free_bytes=0)
+        acq = Acquisition(rig.devices, writer)
+        rig.pacer.follow(lambda: acq.t_s)
+        acq.start()
+        assert acq.wait_until(1.5, 60)
+        stats = acq.stop()
+    assert not stats.errors and stats.frames_unplaced == 0 and stats.queue_dropped_frames == 0
+    with h5py.File(path, "r") as f:
+        t_daq = f["entry/daq/time"][:]
+        t = f["entry/camera/time"][:]
+        seq = f["entry/camera/seq"][:]
+    assert t.size == stats.frames > 30
+    np.testing.assert_array_equal(np.diff(seq), 1)  # none lost while waiting for the clock map
+    assert np.all(np.diff(t) > 0)
+    assert abs(t[0] - t_daq[0]) < 0.3, (t_daq[0], t[0])
