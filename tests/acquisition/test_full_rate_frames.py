@@ -127,11 +127,12 @@ def test_host_stamped_frames_before_the_first_daq_block_are_placed_not_lost(tmp_
     """A camera that is not synchronised to the DAQ gives only a host instant; frames it takes
     before the first DAQ block (here the DAQ's thread starts 0.5 s late) wait until the block's
     clock map places them, then are queued in order."""
+    from drivers.interfaces import RawFrame
     from sim_devices.camera_sim import SimCamera
 
     synced_read = SimCamera._do_read_frame
 
-    def host_stamped(self: SimCamera, timeout_s: float):  # type: ignore[no-untyped-def]
+    def host_stamped(self: SimCamera, timeout_s: float) -> RawFrame | None:
         raw = synced_read(self, timeout_s)
         return None if raw is None else raw._replace(t_device_s=math.nan)
 
