@@ -29,6 +29,7 @@ from functools import cached_property
 import numpy as np
 
 from rigctl.data import DataError, MeasuredRun
+from rigctl.workbench.fn_coupling import applied_normal_force
 from rigctl.workbench.signals import FloatArray, noise_sigma
 
 HOLD_VELOCITY_FRACTION = 0.002
@@ -47,6 +48,8 @@ class DriveProfile:
     fn_N: FloatArray
     t0_s: float
     """Absolute time of the run's first sample (the profile's t = 0)."""
+    fn_per_ft: float = 0.0
+    """dFn/dFt taken out of the measured normal force (:mod:`rigctl.workbench.fn_coupling`; 0: none)."""
 
     @property
     def velocity_m_per_s(self) -> FloatArray:
@@ -440,7 +443,9 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     fn_scale = float(np.median(np.abs(fn)))
     fn_tol = max(8.0 * noise_sigma(fn), fn_tolerance_fraction * fn_scale, 1e-6)
     xt, xv = _fit_channel(t, x, x_tol)
-    ft, fv = _fit_channel(t, fn, fn_tol)
+    # the applied load: without the swing that follows Ft (a coupled frame, cross-talk)
+    fn_applied, fn_per_ft = applied_normal_force(run.ft_N, fn, fn_tol)
+    ft, fv = _fit_channel(t, fn_applied, fn_tol)
     # holds: the stage rests exactly
     v = np.diff(xv) / np.diff(xt)
     v_ref = reference_speed(np.abs(v), np.diff(xt), np.abs(np.diff(xv)) > x_tol)
@@ -462,7 +467,7 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     # 0.01 N) and so never start a new initial stage when the load comes back
     for ta, tb in apart:
         fk[(knots >= ta) & (knots <= tb)] = 0.0
-    prof = DriveProfile(knots, xk, fk, float(run.t_s[0]))
+    prof = DriveProfile(knots, xk, fk, float(run.t_s[0]), fn_per_ft)
     travel = float(np.max(x) - np.min(x))
     if travel <= 4.0 * x_tol or prof.moving_velocities.size == 0:
         raise DataError(
