@@ -444,7 +444,7 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     fn_tol = max(8.0 * noise_sigma(fn), fn_tolerance_fraction * fn_scale, 1e-6)
     xt, xv = _fit_channel(t, x, x_tol)
     # the applied load: without the swing that follows Ft (a coupled frame, cross-talk)
-    fn_applied, fn_per_ft = applied_normal_force(run.ft_N, fn, fn_tol)
+    fn_applied, fn_per_ft = applied_normal_force(run.ft_N, fn)
     ft, fv = _fit_channel(t, fn_applied, fn_tol)
     # holds: the stage rests exactly
     v = np.diff(xv) / np.diff(xt)
