@@ -31,6 +31,7 @@ from rigctl.workbench.identify import (
     free_params,
     least_squares_fit,
     physically_valid,
+    with_uncertainties,
 )
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
@@ -179,7 +180,8 @@ def polish(dataset: Dataset, result: FitResult) -> FitResult:
             best = nxt
         if gain < POLISH_MIN_GAIN:
             break
-    return result if best is result else refine(dataset, best)
+    # uncertainties at the polished values: a further fit would be one more pass
+    return result if best is result else with_uncertainties(dataset, best)
 
 
 def refine(dataset: Dataset, result: FitResult) -> FitResult:

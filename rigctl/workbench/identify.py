@@ -455,6 +455,34 @@ def uncertainties(
     return sigma, undetermined
 
 
+def _uncertainties_at(
+    obj: Objective, free: Sequence[FreeParam], values: Mapping[str, float], u: FloatArray,
+    residual: FloatArray,
+) -> tuple[FloatArray, dict[str, float], list[str]]:
+    """The Jacobian at ``u`` and the uncertainties it gives. A staircase-aware Jacobian, its steps
+    adapted afresh from FD_STEP (a solver's may have shrunk onto a jump): a jump of the events over
+    a tiny step is not a slope that pins the parameter."""
+    careful = HybridJacobian(obj, [], staircase_aware=True)
+    J = careful.full(u)
+    sigma, undetermined = uncertainties(free, dict(values), J, residual, careful.resolution)
+    return J, sigma, undetermined
+
+
+def with_uncertainties(dataset: Dataset, result: FitResult) -> FitResult:
+    """``result`` with uncertainties and the Jacobian taken at its own values (no further fit)."""
+    free = free_params(result.choice, list(result.free))
+    if not free:
+        return result
+    obj = Objective(dataset, result.choice, free)
+    table = {p.name: p.value for p in result.choice.parameter_table()}
+    values = {fp.name: table[fp.name] for fp in free}
+    u = np.array([fp.to_u(values[fp.name]) for fp in free])
+    ev = evaluate(dataset, result.choice)
+    J, sigma, undetermined = _uncertainties_at(obj, free, values, u, ev.score.vector)
+    return replace(result, sigma=sigma, undetermined=undetermined, jacobian=np.array(J),
+                   n_evaluations=result.n_evaluations + obj.n_evaluations + 1)
+
+
 def least_squares_fit(
     dataset: Dataset,
     choice: ModelChoice,
@@ -498,12 +526,7 @@ def least_squares_fit(
     sigma: dict[str, float] = {}
     undetermined: list[str] = []
     if free and with_uncertainty:
-        # a staircase-aware Jacobian for the uncertainties, its steps adapted afresh from FD_STEP
-        # (the solver's may have shrunk onto a jump): a jump of the events over a tiny step is not a
-        # slope that pins the parameter
-        careful = HybridJacobian(obj, [], staircase_aware=True)
-        J = careful.full(u)
-        sigma, undetermined = uncertainties(free, values, J, ev.score.vector, careful.resolution)
+        J, sigma, undetermined = _uncertainties_at(obj, free, values, u, ev.score.vector)
     return FitResult(
         choice=fitted,
         error=ev.score.error,

@@ -8,7 +8,7 @@ from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import identify_model
-from rigctl.workbench.identify import free_params, least_squares_fit
+from rigctl.workbench.identify import free_params, least_squares_fit, with_uncertainties
 from rigctl.workbench.model_choice import ModelChoice
 
 TRUTH = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,
@@ -38,3 +38,19 @@ def test_a_parameter_without_influence_on_the_data_is_flagged(tlre):
     res = least_squares_fit(tlre, choice, free, max_nfev=4, with_uncertainty=True)
     assert "contact_degradation.n_cycles" in res.undetermined
     assert "mu_s" not in res.undetermined
+
+
+def test_uncertainties_at_a_fit_s_own_values_are_the_fit_s(tlre):
+    """``with_uncertainties`` takes them where a fit ended, without fitting further (the final
+    ``--auto`` model's, after its polishing passes)."""
+    free = free_params(ModelChoice("paper"), ["mu_s", "mu_k", "k0_N_per_m"])
+    plain = least_squares_fit(tlre, ModelChoice("paper"), free, max_nfev=3)
+    assert not plain.sigma
+    res = with_uncertainties(tlre, plain)
+    assert res.choice.values == plain.choice.values and res.error == plain.error
+    fitted = least_squares_fit(tlre, ModelChoice("paper"), free, max_nfev=3, with_uncertainty=True)
+    assert fitted.choice.values == plain.choice.values
+    for name in ("mu_s", "mu_k", "k0_N_per_m"):
+        # the same finite differences, about a point that went through p -> u once more
+        assert res.sigma[name] == pytest.approx(fitted.sigma[name], rel=1e-2), name
+    assert res.jacobian is not None and res.jacobian.shape[1] == 3
