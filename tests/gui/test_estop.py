@@ -7,7 +7,6 @@ the drivers' latched emergency stop stops both stages, motion is refused until r
 
 from __future__ import annotations
 
-import math
 import time
 
 import pytest
@@ -16,7 +15,6 @@ from PySide6.QtCore import Qt
 from drivers.errors import EmergencyStopActive
 from rigctl.config.loader import default_config
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
-from rigctl.rigs import open_rig
 from rigctl.runservice.wire import JobSpec
 from rigctl.storage.reader import RunReader
 from tests.gui.service_session import service_session
@@ -24,14 +22,6 @@ from tests.gui.service_session import service_session
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}
 TIMEOUT_MS = 60_000
-
-
-@pytest.fixture
-def rig():
-    with open_rig("sim", default_config(), speed=math.inf) as r:
-        yield r
-        for stage in (r.devices.tangential_stage, r.devices.normal_stage):
-            stage.emergency_stop_registry.reset()
 
 
 def test_f12_mid_run_from_another_widget_stops_the_stages_and_aborts(qtbot, rig, tmp_path):

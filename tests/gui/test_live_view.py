@@ -5,7 +5,6 @@ and the pieces it is made of (frame reduction, P(x), Isum, warning forwarding, b
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +17,6 @@ from rigctl.config.loader import default_config
 from rigctl.gui.live_contact import LiveProfile
 from rigctl.gui.live_view import LiveView, file_info, format_bytes
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
-from rigctl.rigs import open_rig
 from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum
 from rigctl.runservice.wire import JobSpec
@@ -28,14 +26,6 @@ from tests.gui.service_session import service_session
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}
 TIMEOUT_MS = 60_000
-
-
-@pytest.fixture
-def rig():
-    with open_rig("sim", default_config(), speed=math.inf) as r:
-        yield r
-        for stage in (r.devices.tangential_stage, r.devices.normal_stage):
-            stage.emergency_stop_registry.reset()
 
 
 def tlre_window(qtbot, rig, out: Path, camera: bool = True) -> MainWindow:

@@ -5,7 +5,6 @@ notes in the file; the queue of runs in the run service (real processes, simulat
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import shutil
@@ -19,7 +18,6 @@ from PySide6.QtWidgets import QTableWidget, QTableWidgetItem
 from rigctl.config.loader import default_config
 from rigctl.errors import InputError
 from rigctl.gui.run_panel import RunPanel
-from rigctl.rigs import open_rig
 from rigctl.runservice.client import spawn_service
 from rigctl.runservice.queue import RunQueue
 from rigctl.runservice.server import service_alive
@@ -34,12 +32,6 @@ SHORT_SWEEP = {"forces_N": "100, 150", "travel_m": "40e-6", "velocity_m_s": "1e-
 SHORT_SHS = {"slide_m": "20e-6", "velocity_m_s": "1e-5", "holds_s": "1, 2",
              "preload_hold_s": "1", "settle_s": "1"}
 LONG_SLIDE_TLRE = {**SHORT_TLRE, "travel_m": "400e-6", "velocity_m_s": "5e-6"}
-
-
-@pytest.fixture
-def rig():
-    with open_rig("sim", default_config(), speed=math.inf) as r:
-        yield r
 
 
 @pytest.fixture

@@ -2,25 +2,16 @@
 
 from __future__ import annotations
 
-import math
-
 import h5py
 import pytest
 
 from experiments.protocols import PROTOCOLS
 from rigctl.config.loader import default_config
 from rigctl.gui.run_panel import RunPanel, format_value
-from rigctl.rigs import open_rig
 
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}
 TIMEOUT_MS = 60_000
-
-
-@pytest.fixture
-def rig():
-    with open_rig("sim", default_config(), speed=math.inf) as r:
-        yield r
 
 
 def make_panel(qtbot, **kw) -> RunPanel:
