@@ -157,7 +157,7 @@ def _open_h5(path: Path) -> RunSource:
                 parameters = {}
                 notes.append("protocol parameters unreadable")
             markers = reader.events()
-            frames = _frame_info(reader._file, notes)
+            frames = _frame_info(reader.h5file, notes)
             protocol = reader.protocol
             config = reader.config_toml
     except (OSError, KeyError, TypeError) as exc:

@@ -118,6 +118,11 @@ class RunReader:
     # -- samples -----------------------------------------------------------------------------------
 
     @property
+    def h5file(self) -> h5py.File:
+        """The open file (read-only), for what the reader does not wrap (the camera frames)."""
+        return self._file
+
+    @property
     def channels(self) -> dict[str, str]:
         """Channel name -> unit, in recording order."""
         return {
