@@ -477,10 +477,10 @@ def with_uncertainties(dataset: Dataset, result: FitResult) -> FitResult:
     table = {p.name: p.value for p in result.choice.parameter_table()}
     values = {fp.name: table[fp.name] for fp in free}
     u = np.array([fp.to_u(values[fp.name]) for fp in free])
-    ev = evaluate(dataset, result.choice)
-    J, sigma, undetermined = _uncertainties_at(obj, free, values, u, ev.score.vector)
+    # the residual at u is the Jacobian's own base point (the objective caches it)
+    J, sigma, undetermined = _uncertainties_at(obj, free, values, u, obj(u))
     return replace(result, sigma=sigma, undetermined=undetermined, jacobian=np.array(J),
-                   n_evaluations=result.n_evaluations + obj.n_evaluations + 1)
+                   n_evaluations=result.n_evaluations + obj.n_evaluations)
 
 
 def least_squares_fit(
