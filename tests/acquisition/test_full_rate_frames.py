@@ -12,14 +12,15 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from rigctl.acquisition import Acquisition
+from rigctl.acquisition import Acquisition, AcquisitionStats
 from rigctl.config.loader import default_config
-from rigctl.rigs import open_rig
+from rigctl.rigs import OpenRig, open_rig
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 
@@ -31,24 +32,42 @@ APPROACH_M_S = 2.5e-4
 reaches 300 N 0.23 s later."""
 
 
-def test_speed_max_records_every_frame_of_the_rate_on_the_daq_clock(tmp_path: Path) -> None:
+def _record(path: Path, record_s: float,
+            before_start: Callable[[OpenRig], None] | None = None) -> AcquisitionStats:
+    """Record ``record_s`` of rig time of the simulated rig at ``--speed max`` with a W x H,
+    RATE_HZ camera into ``path``; ``before_start`` commands the rig before its clock runs (it
+    waits for the recorder at --speed max)."""
     cfg = default_config()
     cfg = dataclasses.replace(cfg, camera=dataclasses.replace(
         cfg.camera, width_px=W, height_px=H, frame_rate_hz=RATE_HZ))
-    path = tmp_path / "run.h5"
     with open_rig("sim", cfg, speed=math.inf) as rig:
         assert rig.pacer is not None and rig.config.camera.frame_rate_hz == RATE_HZ
-        z_300 = rig.sim.rig.config.contact.z_for_fn_m(300.0)
         writer = RunWriter(path, RunDescription(protocol="test"), DaqLayout(),
                            CameraLayout(H, W, frame_rate_hz=RATE_HZ), min_free_bytes=0)
         acq = Acquisition(rig.devices, writer)
-        # commanded before the paced rig's clock runs (it waits for the recorder at --speed max)
-        rig.devices.normal_stage.enable()
-        rig.devices.normal_stage.move_absolute(z_300, APPROACH_M_S)
+        if before_start is not None:
+            before_start(rig)
         rig.pacer.follow(lambda: acq.t_s)
         acq.start()
-        assert acq.wait_until(RECORD_S, 60)
-        stats = acq.stop()
+        assert acq.wait_until(record_s, 60)
+        return acq.stop()
+
+
+def _times(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """DAQ sample times, frame times and frame sequence numbers of a recorded run."""
+    with h5py.File(path, "r") as f:
+        return f["entry/daq/time"][:], f["entry/camera/time"][:], f["entry/camera/seq"][:]
+
+
+def test_speed_max_records_every_frame_of_the_rate_on_the_daq_clock(tmp_path: Path) -> None:
+    path = tmp_path / "run.h5"
+
+    def approach(rig: OpenRig) -> None:
+        rig.devices.normal_stage.enable()
+        rig.devices.normal_stage.move_absolute(rig.sim.rig.config.contact.z_for_fn_m(300.0),
+                                               APPROACH_M_S)
+
+    stats = _record(path, RECORD_S, approach)
     assert not stats.errors and stats.frames_dropped == 0 and stats.queue_dropped_frames == 0
     with h5py.File(path, "r") as f:
         t_daq = f["entry/daq/time"][:]
@@ -98,24 +117,10 @@ def test_a_camera_thread_that_starts_late_loses_no_frame_at_the_start(tmp_path: 
         original(self)
 
     monkeypatch.setattr(Acquisition, "_camera_loop", late_loop)
-    cfg = default_config()
-    cfg = dataclasses.replace(cfg, camera=dataclasses.replace(
-        cfg.camera, width_px=W, height_px=H, frame_rate_hz=RATE_HZ))
     path = tmp_path / "run.h5"
-    with open_rig("sim", cfg, speed=math.inf) as rig:
-        assert rig.pacer is not None
-        writer = RunWriter(path, RunDescription(protocol="test"), DaqLayout(),
-                           CameraLayout(H, W, frame_rate_hz=RATE_HZ), min_free_bytes=0)
-        acq = Acquisition(rig.devices, writer)
-        rig.pacer.follow(lambda: acq.t_s)
-        acq.start()
-        assert acq.wait_until(1.5, 60)
-        stats = acq.stop()
+    stats = _record(path, 1.5)
     assert not stats.errors and stats.frames_dropped == 0 and stats.queue_dropped_frames == 0
-    with h5py.File(path, "r") as f:
-        t_daq = f["entry/daq/time"][:]
-        t = f["entry/camera/time"][:]
-        seq = f["entry/camera/seq"][:]
+    t_daq, t, seq = _times(path)
     assert t.size > 30
     np.testing.assert_array_equal(np.diff(seq), 1)
     # the first frame is the first of the rate after the DAQ started, not one second later
@@ -144,24 +149,10 @@ def test_host_stamped_frames_before_the_first_daq_block_are_placed_not_lost(tmp_
 
     monkeypatch.setattr(SimCamera, "_do_read_frame", host_stamped)
     monkeypatch.setattr(Acquisition, "_daq_loop", late_daq)
-    cfg = default_config()
-    cfg = dataclasses.replace(cfg, camera=dataclasses.replace(
-        cfg.camera, width_px=W, height_px=H, frame_rate_hz=RATE_HZ))
     path = tmp_path / "run.h5"
-    with open_rig("sim", cfg, speed=math.inf) as rig:
-        assert rig.pacer is not None
-        writer = RunWriter(path, RunDescription(protocol="test"), DaqLayout(),
-                           CameraLayout(H, W, frame_rate_hz=RATE_HZ), min_free_bytes=0)
-        acq = Acquisition(rig.devices, writer)
-        rig.pacer.follow(lambda: acq.t_s)
-        acq.start()
-        assert acq.wait_until(1.5, 60)
-        stats = acq.stop()
+    stats = _record(path, 1.5)
     assert not stats.errors and stats.frames_unplaced == 0 and stats.queue_dropped_frames == 0
-    with h5py.File(path, "r") as f:
-        t_daq = f["entry/daq/time"][:]
-        t = f["entry/camera/time"][:]
-        seq = f["entry/camera/seq"][:]
+    t_daq, t, seq = _times(path)
     assert t.size == stats.frames > 30
     np.testing.assert_array_equal(np.diff(seq), 1)  # none lost while waiting for the clock map
     assert np.all(np.diff(t) > 0)
