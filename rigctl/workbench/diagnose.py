@@ -248,7 +248,7 @@ def _truncate(drive: DriveProfile, t_end_s: float) -> DriveProfile:
     t = np.append(drive.t_s[keep], t_end_s)
     x = np.interp(t, drive.t_s, drive.x_stage_m)
     f = np.interp(t, drive.t_s, drive.fn_N)
-    return DriveProfile(t, x, f, drive.t0_s, drive.fn_per_ft)
+    return replace(drive, t_s=t, x_stage_m=x, fn_N=f)
 
 
 def run_round(
