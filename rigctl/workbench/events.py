@@ -12,7 +12,9 @@ and measurement are read with the same eyes. Drops are counted in the direction 
 a forward jump of the interface displacement delta (a real slip moves the interface; an unloading does
 not) when delta carries a signal. Where the drive velocity is given, a drop while the stage moves
 against the force (a reciprocating rig's stroke reversal: the force falls through zero as the stage
-turns back, however fast) is an unloading, not a slip.
+turns back, however fast) is an unloading, not a slip. A drop that is a swing of the previous
+slip's ringing (a lightly damped slider rings for longer than the merge gap, and each ring swing can
+pass the threshold: :func:`is_ring_swing`) belongs to that slip, not a new one.
 """
 
 from __future__ import annotations
@@ -107,6 +109,7 @@ def detect_slips(
     peaks: list[int] = []
     ends: list[int] = []
     signs: list[int] = []
+    prev_size = 0.0
     for c in clusters:
         c0, c1 = int(c[0]), int(c[-1])
         s = int(sign[c0])
@@ -119,6 +122,9 @@ def detect_slips(
         i_pk = c0 + int(falls[0]) if falls.size else c0 + int(np.argmax(seg))
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
+            continue
+        if (peaks and signs[-1] == s
+                and is_ring_swing(s * ft_N, w, peaks[-1], prev_size, i_pk, i_end, size)):
             continue
         if (v_drive_m_s is not None and _against_the_force(v_drive_m_s, i_pk, i_end, s, v_ref)
                 and not _load_changes(fn_N, i_pk - gap, i_end + gap)):
@@ -133,9 +139,63 @@ def detect_slips(
         peaks.append(i_pk)
         ends.append(i_end)
         signs.append(s)
+        prev_size = size
     return SlipIndices(
         np.array(peaks, dtype=np.intp), np.array(ends, dtype=np.intp), np.array(signs, np.int8)
     )
+
+
+RING_SIZE_FRACTION = 0.5
+"""A ring swing is at most this fraction of the slip that set it ringing."""
+RING_RISE_RANGE = (0.5, 3.0)
+"""Just before a ring swing falls, the force rose by about as much as it then falls (a sinusoid's
+halves are equal); before a slip it rose far less in the same time (the stick loading rate), or
+far more (a stroke reversal loading the contact from the other side)."""
+RING_LOOK_BACK = 3
+"""The rise is read within this many times the drop's fall (peak to lowest sample, plus the
+drop window) before its peak."""
+RING_LOW_QUANTILE = 0.1
+"""The level the force rose from: this quantile of the look-back (single-sample spikes of a
+record do not count as a trough)."""
+RING_RETURN = 0.75
+"""After a swing the force comes back up: its median over the look-back after the drop lies
+less than this fraction of the drop below the peak (about half way: the oscillation's centre),
+where after a slip it stays down at the trough."""
+RING_SPAN_OVER_ELAPSED = 0.5
+"""The look-back is a small part of the time since the slip (several swings fit in it); in a
+near-harmonic stick-slip each cycle is a single swing."""
+
+
+def is_ring_swing(f: FloatArray, w: int, i_prev_peak: int, prev_size: float, i_pk: int,
+                  i_end: int, size: float) -> bool:
+    """A drop of ``size`` from ``i_pk`` to ``i_end`` is a swing of the ringing of the previous
+    slip (peak at ``i_prev_peak``, drop ``prev_size``); ``f`` is the force in the direction of
+    loading and ``w`` the drop window in samples.
+
+    A decaying oscillation about the post-slip line has four features a slip lacks together:
+    its swings are small against the slip that excited it (a free oscillation loses energy),
+    the force rose just before each swing by about as much as it then falls, within a few fall
+    times (a sinusoid's halves are equal, where a slip ends a stick ramp rising at the loading
+    rate), it comes back up after the swing (where a slip leaves it at the trough), and several
+    swings fit in the time since that slip. A slip of a near-harmonic stick-slip, a slip of
+    comparable size, a slip after a stroke reversal and a slow slip starting at a spike each fail
+    one.
+    """
+    if size > RING_SIZE_FRACTION * prev_size:
+        return False
+    i_min = i_pk + int(np.argmin(f[i_pk : i_end + 1]))
+    look = RING_LOOK_BACK * (i_min - i_pk + w)
+    if look > RING_SPAN_OVER_ELAPSED * (i_pk - i_prev_peak):
+        return False
+    before = f[max(i_pk - look, i_prev_peak) : i_pk]
+    if before.size == 0:
+        return False
+    rise = f[i_pk] - float(np.quantile(before, RING_LOW_QUANTILE))
+    lo, hi = RING_RISE_RANGE
+    if not lo * size <= rise <= hi * size:
+        return False
+    after = f[i_end : i_end + look]
+    return after.size > 0 and float(np.median(after)) > f[i_pk] - RING_RETURN * size
 
 
 AGAINST_FRACTION = 0.1

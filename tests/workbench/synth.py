@@ -17,6 +17,7 @@ def sawtooth_run(
     k_N_per_m: float = 1.0e6,
     ring_N: float = 4.0,
     ring_tau_s: float = 0.02,
+    ring_hz: float = 130.0,
     noise_N: float = 0.05,
     fn_N: float = 300.0,
     velocity_m_s: float = 1e-5,
@@ -28,7 +29,7 @@ def sawtooth_run(
     """A run whose Ft ramps from 0 (initial loading) and then saws between trough and peak.
 
     Returns the run and the true slip times. Each slip is instantaneous and followed by an aliased
-    ring (130 Hz apparent, decaying with ring_tau_s) about the settled level.
+    ring (ring_hz apparent, decaying with ring_tau_s) about the settled level.
     """
     rng = np.random.default_rng(seed)
     t = np.arange(int(duration_s * fs_hz)) / fs_hz
@@ -58,7 +59,7 @@ def sawtooth_run(
     for ts in slips:
         sel = t >= ts
         dt = t[sel] - ts
-        ring[sel] += ring_N * np.exp(-dt / ring_tau_s) * np.cos(2 * np.pi * 130.0 * dt)
+        ring[sel] += ring_N * np.exp(-dt / ring_tau_s) * np.cos(2 * np.pi * ring_hz * dt)
     ft = sign * (ft + ring) + rng.normal(0.0, noise_N, t.size)
     x = velocity_m_s * np.clip(t - t_load_start_s, 0.0, None)
     run = MeasuredRun(

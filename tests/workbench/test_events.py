@@ -26,6 +26,30 @@ def test_every_slip_is_found_once_despite_ringing_and_noise():
     assert np.max(np.abs(t_peak - true)) < 3.0 / 1024
 
 
+@pytest.mark.parametrize("ring_N", [3.0, 5.0])
+def test_a_long_slow_ringing_is_one_slip_not_many(ring_N):
+    """A lightly damped slider rings at 30 Hz for seconds after each slip: its swings are slower
+    than the merge gap, and some pass the threshold on their own. They belong to the slip."""
+    run, true = sawtooth_run(ring_N=ring_N, ring_hz=30.0, ring_tau_s=0.5)
+    det = DetectionSettings.from_signal(run.ft_N)
+    slips = detect_slips(run.t_s, run.ft_N, run.delta_m, det)
+    assert slips.n == true.size
+    assert np.max(np.abs(run.t_s[slips.i_peak] - true)) < 3.0 / 1024
+
+
+def test_slips_inside_a_ringing_are_still_found():
+    """Sticks of 1 s while the previous slip still rings above the threshold (tau 0.5 s), and
+    slips of half the size: each is a slip, not a ring swing."""
+    for peak_N, rate in ((45.0, 20.0), (35.0, 10.0)):
+        run, true = sawtooth_run(peak_N=peak_N, rate_N_per_s=rate, ring_N=3.0, ring_hz=30.0,
+                                 ring_tau_s=0.5, duration_s=12.0)
+        det = DetectionSettings.from_signal(run.ft_N)
+        slips = detect_slips(run.t_s, run.ft_N, run.delta_m, det)
+        assert slips.n == true.size
+        # a ring swing on top of the ramp may carry the peak up to a ring period early
+        assert np.max(np.abs(run.t_s[slips.i_peak] - true)) < 1.0 / 30.0
+
+
 def test_drop_times_peaks_and_settled_troughs_match_the_construction():
     run, true = sawtooth_run(ring_N=5.0)
     ev = _read(run)
