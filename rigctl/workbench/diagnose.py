@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -220,6 +220,18 @@ def better_model(dataset: Dataset, model: FitResult, fits: dict[str, FitResult])
     return again if again.error < model.error else None
 
 
+def keep_better(res: FitResult | TaskFailed, before: FitResult | None) -> FitResult | TaskFailed:
+    """The candidate's fit from this round, or its fit from before the model was refitted where
+    that one is better (a refitted model is a new start, not a better one for every candidate)."""
+    if before is None or before.misses_most_slips or not math.isfinite(before.error):
+        return res
+    if isinstance(res, TaskFailed) or before.error < res.error:
+        kept = replace(before)
+        kept.message = "; ".join(filter(None, [before.message, "kept from before the refit"]))
+        return kept
+    return res
+
+
 def cost_order(
     dataset: Dataset, model: FitResult, candidates: Sequence[str]
 ) -> tuple[list[str], list[float]]:
@@ -254,8 +266,12 @@ def _truncate(drive: DriveProfile, t_end_s: float) -> DriveProfile:
 def run_round(
     dataset: Dataset, model: FitResult, candidates: Sequence[str], *, workers: int | None,
     scheduler: Any, progress: Progress | None, timeout_s: float = DEFAULT_TIMEOUT_S,
-    in_process: bool = False,
+    in_process: bool = False, carried: Mapping[str, FitResult] | None = None,
 ) -> Round:
+    """Fit every candidate on ``model`` and rank them. ``carried`` holds candidate fits of the
+    same round before the model was refitted (:func:`better_model`): where one of them reached a
+    lower error than its fit from the new model, it is kept (the candidate's error is that of a
+    full model on the same data, whatever point its fit started from)."""
     candidates, costs = cost_order(dataset, model, candidates)
     tasks = [CandidateTask(dataset, model, c) for c in candidates]
 
@@ -276,6 +292,7 @@ def run_round(
     scores: list[CandidateScore] = []
     by_name: dict[str, FitResult] = {}
     for name, res in zip(candidates, outcomes, strict=True):
+        res = keep_better(res, (carried or {}).get(name))
         if isinstance(res, TaskFailed):
             failed = score_candidate(name, model.error, math.nan, dataset.n_events, 0)
             failed.explains = f"fit failed: {res.message.splitlines()[0]}"
@@ -329,9 +346,11 @@ def diagnose(
     diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
     diag.steps.append(DiagnosisStep(0, model.choice.label(), None, model.error, None))
     restarts = 0
+    carried: dict[str, FitResult] = {}
     while True:
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
-                        progress=progress, timeout_s=timeout_s, in_process=in_process)
+                        progress=progress, timeout_s=timeout_s, in_process=in_process,
+                        carried=carried)
         better = better_model(dataset, model, rnd.fits) if restarts < MAX_BASE_RESTARTS else None
         if better is not None:
             restarts += 1
@@ -341,8 +360,10 @@ def diagnose(
             last.note = "; ".join(filter(None, [last.note, better.message]))
             last.error = better.error
             model = better
+            carried = {n: f for n, f in rnd.fits.items() if n in f.choice.effects}
             continue
         restarts = 0
+        carried = {}
         diag.rounds.append(rnd)
         kind = rnd.verdict.kind
         if not auto or kind is VerdictKind.NONE or len(diag.steps) > MAX_AUTO_STEPS:

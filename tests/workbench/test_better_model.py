@@ -54,3 +54,24 @@ def test_a_gain_the_effect_itself_makes_is_left_to_the_candidate(tlre: Dataset) 
     assert better_model(tlre, model, {"wear": cand}) is None
     # a candidate that did not improve is not looked at
     assert better_model(tlre, model, {"wear": FitResult(cand_choice, model.error, {}, FREE)}) is None
+
+
+def test_a_candidates_fit_from_before_the_refit_is_kept_where_it_is_better() -> None:
+    """After better_model refits the model, the round is run again from the new model; a
+    candidate whose new fit ends worse than its fit in the first pass keeps the first one."""
+    from rigctl.workbench.diagnose import keep_better
+    from rigctl.workbench.parallel import TaskFailed
+
+    before = FitResult(ModelChoice("paper").with_effect("wear"), 1.01, {}, FREE)
+    after = FitResult(ModelChoice("paper").with_effect("wear"), 3.25, {}, FREE)
+    kept = keep_better(after, before)
+    assert isinstance(kept, FitResult) and kept.error == 1.01
+    assert "kept from before the refit" in kept.message
+    assert before.message == ""  # the carried fit itself is not changed
+    assert keep_better(before, after) is before  # the new fit is better: it stays
+    assert keep_better(after, None) is after
+    failed = TaskFailed("worker died")
+    assert keep_better(failed, before).error == 1.01  # type: ignore[union-attr]
+    # a carried fit that misses most slips is a trap, never kept
+    trap = FitResult(before.choice, 0.5, {}, FREE, misses_most_slips=True)
+    assert keep_better(after, trap) is after
