@@ -155,3 +155,26 @@ def test_slips_of_a_reciprocating_record_are_still_found():
     slips = detect_slips(t, ft, None, det, v_drive_m_s=v)
     assert slips.n >= 8
     assert np.all(v[slips.i_peak] > 0) and np.all(slips.sign > 0)
+
+
+def test_a_slow_slip_that_starts_at_a_noise_spike_is_a_slip_not_a_ring_swing():
+    """A spike-prone record (as the ENS spring-slider's): a slow slip (half-cosine fall of 10 mN
+    over 60 ms, each 6 ms of it below the threshold) begins at an upward one-sample spike, so the
+    detector's cluster is the spike and the start of the fall, small against the 20 mN slip
+    before it and rising and falling like a swing. The force stays down after it: a slip."""
+    fs = 2000.0
+    t = np.arange(int(4.0 * fs)) / fs
+    rng = np.random.default_rng(5)
+
+    def fall(t0: float, dur: float) -> np.ndarray:
+        x = np.clip((t - t0) / dur, 0.0, 1.0)
+        return 0.5 * (1.0 - np.cos(np.pi * x))
+
+    # stick from 0.08 N rising 10 mN/s; a 20 mN slip at 1 s (30 ms); a 10 mN slow slip at 3 s
+    ft = 0.08 + 0.01 * t - 0.02 * fall(1.0, 0.03) - 0.01 * fall(3.0, 0.06)
+    ft = ft + 0.0002 * rng.standard_normal(t.size)
+    ft[int(3.0 * fs)] += 0.004
+    det = DetectionSettings(threshold_N=0.0026)
+    slips = detect_slips(t, ft, np.zeros_like(t), det)
+    assert slips.n == 2
+    assert abs(t[slips.i_peak[1]] - 3.0) < 0.005
