@@ -179,9 +179,9 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
     check_run(run)
     prof = drive_profile(run)
     t = run.t_s - run.t_s[0]
-    det = DetectionSettings.from_signal(run.ft_N)
     probes = probe_range(run, delta_measured)
     valid = probes.delta_valid if probes.any_over else None
+    det = DetectionSettings.from_signal(run.ft_N, delta_m=run.delta_m, delta_valid=valid)
     slips = detect_slips(t, run.ft_N, run.delta_m, det, valid, v_drive_m_s=prof.sliding_velocity_at(t),
                          fn_N=run.fn_N)
     read = ReadSettings(det, _settle_time(t, slips.i_end, slips.i_peak))

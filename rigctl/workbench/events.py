@@ -10,7 +10,8 @@ same event, whose direction is that of its first drop. The threshold is
 and measurement are read with the same eyes. Drops are counted in the direction of loading
 (|Ft| falls), so a reversed run works too. A drop that is only a few thresholds large must come with
 a forward jump of the interface displacement delta (a real slip moves the interface; an unloading does
-not) when delta carries a signal. Where the drive velocity is given, a drop while the stage moves
+not) when delta carries a signal, a jump beyond three times the *measured* record's delta noise in
+the model's output too. Where the drive velocity is given, a drop while the stage moves
 against the force (a reciprocating rig's stroke reversal: the force falls through zero as the stage
 turns back, however fast) is an unloading, not a slip. A drop that is a swing of the previous
 slip's ringing (a lightly damped slider rings for longer than the merge gap, and each ring swing can
@@ -35,15 +36,26 @@ class DetectionSettings:
     merge_gap_s: float = 0.03
     confirm_factor: float = 4.0
     """Drops below confirm_factor * threshold need a forward delta jump."""
+    delta_sigma_m: float = 0.0
+    """The measured record's delta noise RMS. A confirming delta jump must exceed 3 of it in any
+    record read with these settings: a model's noise-free delta would otherwise confirm every
+    small drop that the measured probe's noise leaves unconfirmed."""
 
     @staticmethod
     def from_signal(
-        ft_N: FloatArray, k_sigma: float = 12.0, frac_of_scale: float = 0.004
+        ft_N: FloatArray, k_sigma: float = 12.0, frac_of_scale: float = 0.004,
+        delta_m: FloatArray | None = None, delta_valid: np.ndarray | None = None,
     ) -> DetectionSettings:
-        """Threshold from a measured force record: k noise RMS or a fraction of the force scale."""
+        """Threshold from a measured force record: k noise RMS or a fraction of the force scale;
+        with ``delta_m``, the record's delta noise (over ``delta_valid`` samples where given)."""
         sigma = noise_sigma(ft_N)
         scale = float(np.percentile(np.abs(ft_N), 99.0)) if ft_N.size else 0.0
-        return DetectionSettings(threshold_N=max(k_sigma * sigma, frac_of_scale * scale, 1e-9))
+        d_sigma = 0.0
+        if delta_m is not None:
+            d_ok = delta_m if delta_valid is None else delta_m[delta_valid]
+            d_sigma = noise_sigma(d_ok) if d_ok.size else 0.0
+        return DetectionSettings(threshold_N=max(k_sigma * sigma, frac_of_scale * scale, 1e-9),
+                                 delta_sigma_m=d_sigma)
 
 
 @dataclass(frozen=True)
@@ -96,11 +108,11 @@ def detect_slips(
         return empty
     breaks = np.flatnonzero(np.diff(cand) > gap) + 1
     clusters = np.split(cand, breaks)
-    d_sigma = noise_sigma(delta_m) if delta_m is not None else 0.0
+    d_sigma = max(noise_sigma(delta_m), settings.delta_sigma_m) if delta_m is not None else 0.0
     d_informative = delta_m is not None and float(np.ptp(delta_m)) > 20.0 * d_sigma
     if delta_m is not None and delta_valid is not None:
         d_ok = delta_m[delta_valid]
-        d_sigma = noise_sigma(d_ok) if d_ok.size else 0.0
+        d_sigma = max(noise_sigma(d_ok) if d_ok.size else 0.0, settings.delta_sigma_m)
         d_informative = d_ok.size > 0 and float(np.ptp(d_ok)) > 20.0 * d_sigma
     v_ref = 0.0
     if v_drive_m_s is not None:

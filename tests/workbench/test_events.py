@@ -178,3 +178,19 @@ def test_a_slow_slip_that_starts_at_a_noise_spike_is_a_slip_not_a_ring_swing():
     slips = detect_slips(t, ft, np.zeros_like(t), det)
     assert slips.n == 2
     assert abs(t[slips.i_peak[1]] - 3.0) < 0.005
+
+
+def test_a_model_record_is_confirmed_against_the_measured_probe_noise():
+    """Same eyes for delta: a small drop whose noise-free delta jump would confirm it on its own
+    is not confirmed where the measured record's delta noise makes such a jump unreadable."""
+    run, _ = sawtooth_run(peak_N=1e9, duration_s=10.0, noise_N=0.01)
+    ft = run.ft_N.copy()
+    ft[5000:] -= 0.5
+    d = np.linspace(0.0, 1e-4, ft.size)  # a noise-free model's delta: stick creep ...
+    d[5000:] += 2e-6  # ... and the slip's 2 um jump
+    noisy = d + 1e-6 * np.random.default_rng(1).standard_normal(d.size)
+    measured = DetectionSettings.from_signal(ft, delta_m=noisy)
+    assert measured.delta_sigma_m == pytest.approx(1e-6, rel=0.1)
+    settings = DetectionSettings(threshold_N=0.3, delta_sigma_m=measured.delta_sigma_m)
+    assert detect_slips(run.t_s, ft, d, settings).n == 0  # 2 um < 3 x 1 um
+    assert detect_slips(run.t_s, ft, d, DetectionSettings(threshold_N=0.3)).n == 1
