@@ -50,10 +50,7 @@ class DetectionSettings:
         with ``delta_m``, the record's delta noise (over ``delta_valid`` samples where given)."""
         sigma = noise_sigma(ft_N)
         scale = float(np.percentile(np.abs(ft_N), 99.0)) if ft_N.size else 0.0
-        d_sigma = 0.0
-        if delta_m is not None:
-            d_ok = delta_m if delta_valid is None else delta_m[delta_valid]
-            d_sigma = noise_sigma(d_ok) if d_ok.size else 0.0
+        d_sigma = 0.0 if delta_m is None else noise_sigma(_in_range(delta_m, delta_valid))
         return DetectionSettings(threshold_N=max(k_sigma * sigma, frac_of_scale * scale, 1e-9),
                                  delta_sigma_m=d_sigma)
 
@@ -108,11 +105,10 @@ def detect_slips(
         return empty
     breaks = np.flatnonzero(np.diff(cand) > gap) + 1
     clusters = np.split(cand, breaks)
-    d_sigma = max(noise_sigma(delta_m), settings.delta_sigma_m) if delta_m is not None else 0.0
-    d_informative = delta_m is not None and float(np.ptp(delta_m)) > 20.0 * d_sigma
-    if delta_m is not None and delta_valid is not None:
-        d_ok = delta_m[delta_valid]
-        d_sigma = max(noise_sigma(d_ok) if d_ok.size else 0.0, settings.delta_sigma_m)
+    d_sigma, d_informative = 0.0, False
+    if delta_m is not None:
+        d_ok = _in_range(delta_m, delta_valid)
+        d_sigma = max(noise_sigma(d_ok), settings.delta_sigma_m)
         d_informative = d_ok.size > 0 and float(np.ptp(d_ok)) > 20.0 * d_sigma
     v_ref = 0.0
     if v_drive_m_s is not None:
@@ -155,6 +151,11 @@ def detect_slips(
     return SlipIndices(
         np.array(peaks, dtype=np.intp), np.array(ends, dtype=np.intp), np.array(signs, np.int8)
     )
+
+
+def _in_range(delta_m: FloatArray, delta_valid: np.ndarray | None) -> FloatArray:
+    """Delta where the probes were in range (all of it where no mask is given)."""
+    return delta_m if delta_valid is None else delta_m[delta_valid]
 
 
 RING_SIZE_FRACTION = 0.5
