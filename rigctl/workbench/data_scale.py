@@ -15,10 +15,13 @@ the base parameters are set from what the measured events show directly (no simu
   (paper Sec. 5.2: both carry Ft in stick). Where delta is measured, dFt/d(delta) in stick is Kts
   and K0 follows; without delta the two are not separable and keep the preset's ratio Kts/K0 (the
   fit reports them as not determined).
-* **mass and damping** from a rig description (``m_kg``, ``c0_N_s_per_m``) where given; else the mass
-  keeps the preset's slip frequency sqrt(K0/M) (during a global slip every element slides and the
-  mass swings on the drive spring alone: 880 Hz, a slip over in about half a millisecond, under
-  one sample at most rates) and C0 the preset's damping ratio C0 / (2 sqrt(K0 M)) (0.75 %).
+* **mass and damping** from a rig description (``m_kg``, ``c0_N_s_per_m``) where given; else from
+  the post-slip ringing where the sampling resolves it (:mod:`rigctl.workbench.ringing`): in stick
+  the mass rings between drive spring and interface, ``M = (K0 + Kts) / omega_n^2``, and decays at
+  ``sigma = C0 / (2 M)``, so ``C0 = 2 sigma M``; else the mass keeps the preset's slip frequency
+  sqrt(K0/M) (during a global slip every element slides and the mass swings on the drive spring
+  alone: 880 Hz, a slip over in about half a millisecond, under one sample at most rates) and C0
+  the preset's damping ratio C0 / (2 sqrt(K0 M)) (0.75 %).
 
 Effect parameters that declare what they scale with (``ParamSpec.scales_with``) are carried to the
 data's scale by the ratio of that quantity, data over preset (:func:`scale_ratios`,
@@ -33,12 +36,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from rigctl.model.params import BASE_PARAMS
 from rigctl.workbench.features import EventTable
+from rigctl.workbench.ringing import Ringing
 
 PRESET = {s.name: float(s.default) for s in BASE_PARAMS}
 PRESET_FN_N = 300.0
@@ -91,14 +95,18 @@ class DataScale:
     """Median stick duration."""
     delta_measured: bool = True
     """False when no run of the campaign has a displacement probe."""
+    ringing: Ringing = field(default_factory=Ringing)
+    """The campaign's post-slip ringing (not resolved: NaN frequency)."""
 
     @property
     def usable(self) -> bool:
         return all(math.isfinite(v) and v > 0 for v in (self.fn_N, self.mu_peak, self.k_eff_N_per_m))
 
 
-def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True) -> DataScale:
-    """The :class:`DataScale` of the measured events of a campaign.
+def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
+                  ringing: Ringing | None = None) -> DataScale:
+    """The :class:`DataScale` of the measured events of a campaign (``ringing``: its post-slip
+    ringing, :func:`rigctl.workbench.ringing.campaign_ringing`).
 
     dFt/d(delta) is read only where delta resolves the interface's give in stick: the stick
     windows' delta-on-Ft slopes (compliances) must come out positive in at least
@@ -145,6 +153,7 @@ def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True) -> 
         k_stick_N_per_m=k_stick,
         stick_s=_median(col("stick_s", True)),
         delta_measured=delta_measured,
+        ringing=ringing or Ringing(),
     )
 
 
@@ -192,13 +201,20 @@ def base_start(scale: DataScale, current: Mapping[str, float],
     out["k0_N_per_m"], out["kts_N_per_m"] = k0, kts
     if "kt0_N_per_m" in current:
         out["kt0_N_per_m"] = kts * PRESET_KT0_N_PER_M / PRESET["kts_N_per_m"]
-    # a global slip is the mass on the drive spring (all elements slide): keep the preset's slip
-    # frequency sqrt(K0/M) and damping ratio C0 / (2 sqrt(K0 M))
-    omega2 = PRESET["k0_N_per_m"] / PRESET["m_kg"]
-    zeta = PRESET["c0_N_s_per_m"] / (2.0 * math.sqrt(PRESET["k0_N_per_m"] * PRESET["m_kg"]))
-    m = fixed.get("m_kg", k0 / omega2)
-    out["m_kg"] = m
-    out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * zeta * math.sqrt(k0 * m))
+    ring = scale.ringing
+    if ring.resolved:
+        # in stick the mass rings between drive spring and interface (ringing.py)
+        m = fixed.get("m_kg", (k0 + kts) / ring.omega_n2)
+        out["m_kg"] = m
+        out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * max(ring.decay_per_s, 0.0) * m)
+    else:
+        # a global slip is the mass on the drive spring (all elements slide): keep the preset's
+        # slip frequency sqrt(K0/M) and damping ratio C0 / (2 sqrt(K0 M))
+        omega2 = PRESET["k0_N_per_m"] / PRESET["m_kg"]
+        zeta = PRESET["c0_N_s_per_m"] / (2.0 * math.sqrt(PRESET["k0_N_per_m"] * PRESET["m_kg"]))
+        m = fixed.get("m_kg", k0 / omega2)
+        out["m_kg"] = m
+        out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * zeta * math.sqrt(k0 * m))
     out.update({k: v for k, v in fixed.items() if k in current})
     return {k: float(v) for k, v in out.items() if k in current and math.isfinite(v)}
 

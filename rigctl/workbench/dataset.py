@@ -31,7 +31,8 @@ from rigctl.workbench.image_features import ImageFeatures, read_image_features
 from rigctl.workbench.long_records import WINDOW_KEY
 from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.rig_description import RigDescription, campaign_description
-from rigctl.workbench.signals import FloatArray
+from rigctl.workbench.ringing import RingFit, run_ring_fits
+from rigctl.workbench.signals import FloatArray, noise_sigma
 
 BLOCK_SIZE = 6
 """Events per averaging block (the first event of each drive segment is a block of its own)."""
@@ -65,6 +66,8 @@ class PreparedRun:
     """What the run's camera frames say (:mod:`rigctl.workbench.image_features`); None without."""
     image_absent: str = ""
     """Why the run has no image feature ('' when it has one, or when images were not asked for)."""
+    ring_fits: tuple[RingFit, ...] = ()
+    """The post-slip ringing after its slips (:mod:`rigctl.workbench.ringing`)."""
 
 
 @dataclass(frozen=True)
@@ -207,6 +210,8 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
         blocks=_blocks(events),
         notes=tuple(probes.notes(name)),
         delta_measured=probes.delta_measured,
+        ring_fits=tuple(run_ring_fits(t, run.ft_N, events.t_drop_s, slips.i_peak, slips.sign,
+                                      events.features["step_frac"], noise_sigma(run.ft_N))),
     )
 
 

@@ -31,6 +31,7 @@ from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.workbench.data_scale import (
     NEAR_PRESET,
+    DataScale,
     base_start,
     measure_scale,
     scale_effect_values,
@@ -55,6 +56,7 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.metrics import Score
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.rig_description import check_names
+from rigctl.workbench.ringing import campaign_ringing
 
 BASELINE_MAX_NFEV = 24  # solver evaluations for the model as given (its fit is done once)
 CANDIDATE_MAX_NFEV = 10  # per candidate start: a dozen candidates are fitted per round
@@ -206,6 +208,15 @@ def _another_rig(model: ModelChoice, scaled: ModelChoice) -> bool:
     return False
 
 
+def campaign_scale(dataset: Dataset) -> DataScale:
+    """What the campaign's measured events and post-slip ringing show directly (data_scale.py)."""
+    return measure_scale(
+        (r.events for r in dataset.runs),
+        delta_measured=any(r.delta_measured for r in dataset.runs),
+        ringing=campaign_ringing(f for r in dataset.runs for f in r.ring_fits),
+    )
+
+
 def data_scaled(dataset: Dataset, choice: ModelChoice,
                 free: list[FreeParam]) -> ModelChoice | None:
     """``choice`` with its base values at the data's scale (None when the events do not show it).
@@ -213,8 +224,7 @@ def data_scaled(dataset: Dataset, choice: ModelChoice,
     Fitted parameters take the data-scale values within their (rig-description) bounds; the fixed
     ones keep what the rig description states."""
     current = {p.name: p.value for p in choice.parameter_table()}
-    scale = measure_scale((r.events for r in dataset.runs),
-                          delta_measured=any(r.delta_measured for r in dataset.runs))
+    scale = campaign_scale(dataset)
     values = base_start(scale, current, dataset.rig.fixed)
     if not values:
         return None
@@ -404,8 +414,7 @@ def fit_candidate(task: CandidateTask, with_uncertainty: bool = False) -> FitRes
 def _at_data_scale(dataset: Dataset, choice: ModelChoice, effect: str) -> ModelChoice:
     """The effect's dimensional defaults carried to the data's scale (data_scale.py: only where
     the data lie more than a factor 3 from the preset), except what the rig description fixes."""
-    scale = measure_scale((r.events for r in dataset.runs),
-                          delta_measured=any(r.delta_measured for r in dataset.runs))
+    scale = campaign_scale(dataset)
     if not scale.usable:
         return choice
     prefix = f"{effect}."
