@@ -278,12 +278,15 @@ def run_round(
     def done(i: int, res: FitResult | TaskFailed) -> None:
         if not progress:
             return
+        kept = keep_better(res, (carried or {}).get(candidates[i]))
+        keeps = (f"; keeps its fit from before the refit, error {kept.error:.3g}"
+                 if isinstance(kept, FitResult) and kept is not res else "")
         if isinstance(res, TaskFailed):
-            progress(f"  {candidates[i]}: fit failed: {res.message.splitlines()[0]}")
+            progress(f"  {candidates[i]}: fit failed: {res.message.splitlines()[0]}{keeps}")
         else:
             progress(f"  fitted {candidates[i]}: error {res.error:.3g} "
                      f"(base {model.error:.3g}; {res.n_evaluations} simulations, "
-                     f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s)")
+                     f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s){keeps}")
 
     outcomes = run_tasks(fit_candidate, tasks, workers=workers, scheduler=scheduler,
                          on_done=done, timeout_s=timeout_s, in_process=in_process,

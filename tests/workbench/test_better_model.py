@@ -75,3 +75,26 @@ def test_a_candidates_fit_from_before_the_refit_is_kept_where_it_is_better() -> 
     # a carried fit that misses most slips is a trap, never kept
     trap = FitResult(before.choice, 0.5, {}, FREE, misses_most_slips=True)
     assert keep_better(after, trap) is after
+
+
+def test_the_progress_line_says_when_the_fit_from_before_is_kept(
+        tlre: Dataset, monkeypatch: pytest.MonkeyPatch) -> None:
+    from rigctl.workbench import diagnose
+
+    model = _result(tlre, ModelChoice("paper").with_values(TRUTH))
+    before = _result(tlre, _with_wear_off(model.choice))
+    after = FitResult(before.choice, before.error + 1.0, {}, FREE)
+
+    def fake_run_tasks(fn: object, tasks: list[object], **kw: object) -> list[FitResult]:
+        kw["on_done"](0, after)  # type: ignore[operator]
+        return [after]
+
+    monkeypatch.setattr(diagnose, "run_tasks", fake_run_tasks)
+    lines: list[str] = []
+    rnd = diagnose.run_round(tlre, model, ["wear"], workers=1, scheduler=None,
+                             progress=lines.append, carried={"wear": before})
+    fitted = [line for line in lines if "fitted wear" in line]
+    assert len(fitted) == 1
+    assert f"error {after.error:.3g}" in fitted[0]
+    assert f"keeps its fit from before the refit, error {before.error:.3g}" in fitted[0]
+    assert rnd.fits["wear"].error == before.error
