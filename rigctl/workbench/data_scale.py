@@ -42,7 +42,7 @@ import numpy as np
 
 from rigctl.model.params import BASE_PARAMS
 from rigctl.workbench.features import EventTable
-from rigctl.workbench.ringing import Ringing
+from rigctl.workbench.ringing import Ringing, ringing_mass
 
 PRESET = {s.name: float(s.default) for s in BASE_PARAMS}
 PRESET_FN_N = 300.0
@@ -204,7 +204,7 @@ def base_start(scale: DataScale, current: Mapping[str, float],
     ring = scale.ringing
     if ring.resolved:
         # in stick the mass rings between drive spring and interface (ringing.py)
-        m = fixed.get("m_kg", (k0 + kts) / ring.omega_n2)
+        m = fixed.get("m_kg", ringing_mass(ring, k0, kts))
         out["m_kg"] = m
         out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * max(ring.decay_per_s, 0.0) * m)
     else:

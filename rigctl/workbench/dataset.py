@@ -31,7 +31,7 @@ from rigctl.workbench.image_features import ImageFeatures, read_image_features
 from rigctl.workbench.long_records import WINDOW_KEY
 from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.rig_description import RigDescription, campaign_description
-from rigctl.workbench.ringing import RingFit, run_ring_fits
+from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, run_ring_fits
 from rigctl.workbench.signals import FloatArray, noise_sigma
 
 BLOCK_SIZE = 6
@@ -94,6 +94,18 @@ class Dataset:
     @property
     def n_events(self) -> int:
         return sum(r.events.n for r in self.runs)
+
+    @property
+    def ringing(self) -> Ringing:
+        """The campaign's post-slip ringing (:func:`rigctl.workbench.ringing.campaign_ringing`)."""
+        return campaign_ringing(f for r in self.runs for f in r.ring_fits)
+
+    @property
+    def mass_from_ringing(self) -> bool:
+        """The mass follows the drive and interface stiffnesses at the measured ringing frequency
+        (:func:`rigctl.workbench.ringing.ringing_mass`): the ringing is resolved and the rig
+        description does not state the mass."""
+        return "m_kg" not in self.rig.fixed and self.ringing.resolved
 
     @property
     def names(self) -> list[str]:
@@ -421,6 +433,13 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
                 f"{', '.join(str(int(k) + 1) for k in np.flatnonzero(irr))}: compared by the "
                 "phase mean, not slip by slip")
     per_event = tuple(event_scatter(r, phase_scatter(r, sigma, r.irregular)) for r in prepared)
+    ring = campaign_ringing(f for r in prepared for f in r.ring_fits)
+    if ring.resolved and "m_kg" not in rig.fixed:
+        notes.append(
+            f"post-slip ringing resolved after {ring.n_resolved} of {ring.n_tried} slips: "
+            f"{ring.freq_hz:.4g} Hz, decaying at {ring.decay_per_s:.3g} /s; a fitted model's "
+            "mass follows its drive and interface stiffnesses at that frequency, "
+            "M = (K0 + Kts) / omega_n^2")
     return Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event, rig)
 
 

@@ -56,7 +56,6 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.metrics import Score
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.rig_description import check_names
-from rigctl.workbench.ringing import campaign_ringing
 
 BASELINE_MAX_NFEV = 24  # solver evaluations for the model as given (its fit is done once)
 CANDIDATE_MAX_NFEV = 10  # per candidate start: a dozen candidates are fitted per round
@@ -131,8 +130,11 @@ def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[
         # mass and damping not stated are guesses (the preset's, or data_scale.py's); the
         # post-slip dynamics (ringing, drop shape) determine them where the sampling resolves
         # them, else the fit reports them as not determined
+        # where the ringing is resolved the mass follows the stiffnesses at its frequency
+        # (Objective.values), and is neither scanned nor fitted
         have = {fp.name for fp in free}
-        extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed]
+        extra = [n for n in DYNAMIC_PARAMS if n not in have and n not in rig.fixed
+                 and not (n == "m_kg" and dataset.mass_from_ringing)]
         if "m_kg" in extra:
             best_choice, e_best = _scan_mass(dataset, best_choice, e_best, fns,
                                              keep_damping="c0_N_s_per_m" in extra)
@@ -213,7 +215,7 @@ def campaign_scale(dataset: Dataset) -> DataScale:
     return measure_scale(
         (r.events for r in dataset.runs),
         delta_measured=any(r.delta_measured for r in dataset.runs),
-        ringing=campaign_ringing(f for r in dataset.runs for f in r.ring_fits),
+        ringing=dataset.ringing,
     )
 
 

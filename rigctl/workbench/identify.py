@@ -38,6 +38,7 @@ from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.metrics import RunComparison
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.rig_description import RigDescription
+from rigctl.workbench.ringing import ringing_mass
 from rigctl.workbench.signals import FloatArray
 
 FD_STEP = 0.05  # first finite-difference step in internal units (5 % of a log parameter)
@@ -164,9 +165,19 @@ class Objective:
         self._trapped: set[bytes] = set()
         """Points whose model misses most measured slips (:data:`MAX_MISSING_FRACTION`): never
         :attr:`best_u`."""
+        self.ringing = dataset.ringing if dataset.mass_from_ringing and all(
+            fp.name != "m_kg" for fp in self.free) else None
+        """Where set, the mass follows the stiffnesses at its measured frequency (ringing.py)."""
+        self._at_start = {p.name: p.value for p in choice.parameter_table()}
 
     def values(self, u: FloatArray) -> dict[str, float]:
-        return {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, u, strict=True)}
+        """The model's values at ``u``: the free parameters, and the mass where it follows the
+        measured ringing (:attr:`ringing`)."""
+        out = {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, u, strict=True)}
+        if self.ringing is not None:
+            stiff = {**self._at_start, **out}
+            out["m_kg"] = ringing_mass(self.ringing, stiff["k0_N_per_m"], stiff["kts_N_per_m"])
+        return out
 
     def __call__(self, u: FloatArray) -> FloatArray:
         key = np.asarray(u, dtype=np.float64).tobytes()

@@ -200,3 +200,10 @@ def campaign_ringing(fits: Iterable[RingFit]) -> Ringing:
         return Ringing(n_resolved=len(ok), n_tried=tried)
     decay = float(np.median([f.decay_per_s for f in ok]))
     return Ringing(med, decay, len(ok), tried)
+
+
+def ringing_mass(ring: Ringing, k0_N_per_m: float, kts_N_per_m: float) -> float:
+    """The mass that rings at ``ring``'s frequency between the drive spring and the stuck
+    interface: ``M = (K0 + Kts) / omega_n^2`` (module docstring)."""
+    return (k0_N_per_m + kts_N_per_m) / ring.omega_n2
+

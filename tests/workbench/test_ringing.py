@@ -12,7 +12,7 @@ from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.data_scale import PRESET, DataScale, base_start
 from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.fitting import campaign_scale, data_scaled
+from rigctl.workbench.fitting import campaign_scale, data_scaled, identify_model
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, fit_ring
 from tests.workbench.synth import sawtooth_run
@@ -115,3 +115,17 @@ def test_this_rigs_own_campaign_and_instant_slips_show_no_ringing():
     assert not campaign_scale(prepare_dataset([run])).ringing.resolved
     quiet, _ = sawtooth_run(duration_s=30.0, ring_N=0.0)
     assert not campaign_scale(prepare_dataset([quiet])).ringing.resolved
+
+
+def test_a_fit_keeps_the_mass_at_the_measured_ringing(heavy_rig):
+    """Where the ringing is resolved and the mass not stated, the mass follows K0 + Kts at the
+    measured frequency in every fit (identify.Objective), and the dataset says so."""
+    assert heavy_rig.mass_from_ringing
+    assert any("post-slip ringing resolved" in n for n in heavy_rig.notes)
+    res = identify_model(heavy_rig, ModelChoice("paper"), with_uncertainty=False)
+    v = res.choice.values
+    assert "m_kg" not in res.free
+    assert v["m_kg"] == pytest.approx(
+        (v["k0_N_per_m"] + v["kts_N_per_m"]) / heavy_rig.ringing.omega_n2, rel=1e-9)
+    assert v["m_kg"] == pytest.approx(RIG["m_kg"], rel=0.1)
+    assert res.error < 2.0
