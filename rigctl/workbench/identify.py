@@ -168,7 +168,9 @@ class Objective:
         self.ringing = dataset.ringing if dataset.mass_from_ringing and all(
             fp.name != "m_kg" for fp in self.free) else None
         """Where set, the mass follows the stiffnesses at its measured frequency (ringing.py)."""
-        self._at_start = {p.name: p.value for p in choice.parameter_table()}
+        table = choice.parameter_table()
+        self._at_start = {p.name: p.value for p in table}
+        self._m_bounds = next((p.lower, p.upper) for p in table if p.name == "m_kg")
 
     def values(self, u: FloatArray) -> dict[str, float]:
         """The model's values at ``u``: the free parameters, and the mass where it follows the
@@ -176,7 +178,8 @@ class Objective:
         out = {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, u, strict=True)}
         if self.ringing is not None:
             stiff = {**self._at_start, **out}
-            out["m_kg"] = ringing_mass(self.ringing, stiff["k0_N_per_m"], stiff["kts_N_per_m"])
+            m = ringing_mass(self.ringing, stiff["k0_N_per_m"], stiff["kts_N_per_m"])
+            out["m_kg"] = min(max(m, self._m_bounds[0]), self._m_bounds[1])
         return out
 
     def __call__(self, u: FloatArray) -> FloatArray:

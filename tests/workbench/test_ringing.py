@@ -13,6 +13,7 @@ from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.data_scale import PRESET, DataScale, base_start
 from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import campaign_scale, data_scaled, identify_model
+from rigctl.workbench.identify import Objective, free_params
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, fit_ring
 from tests.workbench.synth import sawtooth_run
@@ -129,3 +130,13 @@ def test_a_fit_keeps_the_mass_at_the_measured_ringing(heavy_rig):
         (v["k0_N_per_m"] + v["kts_N_per_m"]) / heavy_rig.ringing.omega_n2, rel=1e-9)
     assert v["m_kg"] == pytest.approx(RIG["m_kg"], rel=0.1)
     assert res.error < 2.0
+
+
+def test_the_tied_mass_stays_within_its_bounds(heavy_rig):
+    """A fit may try stiffnesses whose tied mass lies beyond the mass's bounds; the point is then
+    the bound's (it failed in the final evaluation before)."""
+    free = free_params(ModelChoice("paper"), ["k0_N_per_m", "kts_N_per_m"])
+    obj = Objective(heavy_rig, ModelChoice("paper"), free)
+    u = np.array([fp.to_u(1e13) for fp in free])
+    assert obj.values(u)["m_kg"] == 1e5
+    ModelChoice("paper").with_values(obj.values(u)).build()  # no ParameterError
