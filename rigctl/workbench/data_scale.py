@@ -205,16 +205,16 @@ def base_start(scale: DataScale, current: Mapping[str, float],
     if ring.resolved:
         # in stick the mass rings between drive spring and interface (ringing.py)
         m = fixed.get("m_kg", ringing_mass(ring, k0, kts))
-        out["m_kg"] = m
-        out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * max(ring.decay_per_s, 0.0) * m)
+        c0 = 2.0 * max(ring.decay_per_s, 0.0) * m
     else:
         # a global slip is the mass on the drive spring (all elements slide): keep the preset's
         # slip frequency sqrt(K0/M) and damping ratio C0 / (2 sqrt(K0 M))
         omega2 = PRESET["k0_N_per_m"] / PRESET["m_kg"]
         zeta = PRESET["c0_N_s_per_m"] / (2.0 * math.sqrt(PRESET["k0_N_per_m"] * PRESET["m_kg"]))
         m = fixed.get("m_kg", k0 / omega2)
-        out["m_kg"] = m
-        out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", 2.0 * zeta * math.sqrt(k0 * m))
+        c0 = 2.0 * zeta * math.sqrt(k0 * m)
+    out["m_kg"] = m
+    out["c0_N_s_per_m"] = fixed.get("c0_N_s_per_m", c0)
     out.update({k: v for k, v in fixed.items() if k in current})
     return {k: float(v) for k, v in out.items() if k in current and math.isfinite(v)}
 

@@ -186,11 +186,13 @@ def check_run(run: MeasuredRun) -> None:
 
 
 def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
-                images: bool = False) -> PreparedRun:
+                images: bool = False, ringing: bool = False) -> PreparedRun:
     """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes.
 
     ``images``: also read the run file's camera frames once, streamed, into the image features
-    (:func:`rigctl.workbench.image_features.read_image_features`)."""
+    (:func:`rigctl.workbench.image_features.read_image_features`). ``ringing``: also fit the
+    post-slip ringing (:func:`rigctl.workbench.ringing.run_ring_fits`; a model's starting mass
+    and damping, not needed to analyse a run)."""
     check_run(run)
     prof = drive_profile(run)
     t = run.t_s - run.t_s[0]
@@ -223,7 +225,8 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
         notes=tuple(probes.notes(name)),
         delta_measured=probes.delta_measured,
         ring_fits=tuple(run_ring_fits(t, run.ft_N, events.t_drop_s, slips.i_peak, slips.sign,
-                                      events.features["step_frac"], noise_sigma(run.ft_N))),
+                                      events.features["step_frac"], noise_sigma(run.ft_N)))
+        if ringing else (),
     )
 
 
@@ -401,7 +404,7 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     notes: list[str] = rig.notes()
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
-        pr = prepare_run(run, name, rig.delta_measured, images=True)
+        pr = prepare_run(run, name, rig.delta_measured, images=True, ringing=True)
         if WINDOW_KEY in run.metadata:
             notes.append(run.metadata[WINDOW_KEY])
         notes.extend(pr.notes)
@@ -433,14 +436,15 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
                 f"{', '.join(str(int(k) + 1) for k in np.flatnonzero(irr))}: compared by the "
                 "phase mean, not slip by slip")
     per_event = tuple(event_scatter(r, phase_scatter(r, sigma, r.irregular)) for r in prepared)
-    ring = campaign_ringing(f for r in prepared for f in r.ring_fits)
-    if ring.resolved and "m_kg" not in rig.fixed:
-        notes.append(
-            f"post-slip ringing resolved after {ring.n_resolved} of {ring.n_tried} slips: "
-            f"{ring.freq_hz:.4g} Hz, decaying at {ring.decay_per_s:.3g} /s; a fitted model's "
-            "mass follows its drive and interface stiffnesses at that frequency, "
-            "M = (K0 + Kts) / omega_n^2")
-    return Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event, rig)
+    ds = Dataset(tuple(prepared), sigma, scale, tuple(notes), per_event, rig)
+    if not ds.mass_from_ringing:
+        return ds
+    ring = ds.ringing
+    return replace(ds, notes=(*ds.notes, (
+        f"post-slip ringing resolved after {ring.n_resolved} of {ring.n_tried} slips: "
+        f"{ring.freq_hz:.4g} Hz, decaying at {ring.decay_per_s:.3g} /s; a fitted model's "
+        "mass follows its drive and interface stiffnesses at that frequency, "
+        "M = (K0 + Kts) / omega_n^2")))
 
 
 def protocols_present(dataset: Dataset) -> list[str]:
