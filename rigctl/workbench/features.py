@@ -17,8 +17,9 @@ feature                   unit    definition
                                   first event: since the start of motion) / drive velocity
                                   at the drop (= the recurrence time at constant velocity)
 ``rate_N_per_s``          N/s     stick loading rate dFt/dt (early part of the loading ramp)
-``k_stick_N_per_m``       N/m     K(i) of the paper: dFt/d(delta) on the same part, from the
-                                  regression of delta on Ft (Ft is the less noisy variable)
+``k_stick_N_per_m``       N/m     K(i) of the paper: dFt/d(delta) on the same part, as the
+                                  ratio of the two line slopes in time, dFt/dt / d(delta)/dt
+                                  (a post-slip ringing still alive in the window averages out)
 ``rounding``              -       slope of the last 15 % of the ramp / early slope (1 = straight)
 ``ring_N``                N       RMS of Ft about the settled line in the settle window, less
                                   the white noise (aliased ringing amplitude)
@@ -57,8 +58,8 @@ COVARIATES: tuple[str, ...] = (
     "dft_dt_N_per_s",
 )
 MAX_ATTENUATION = 0.1
-"""K(i) is read only where the force noise attenuates the fitted compliance by at most 10 % before
-correction (the force range of the window at least about 11 noise RMS)."""
+"""K(i) is read only where the force noise makes at most 10 % of Ft's variance in the window (the
+force range of the window at least about 11 noise RMS)."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
 
 
@@ -345,18 +346,26 @@ def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray
         se["rate_N_per_s"][j] = se_rate / abs(rate)
         se["rounding"][j] = math.hypot(se_end, abs(rate_end) * se_rate / abs(rate)) / abs(rate)
     f_seg = rec.ft_N[i_e0:i_e1]
-    # Ft is noisy too: the least-squares slope of delta on Ft is attenuated by the
-    # reliability ratio 1 - sigma_f^2 / var(Ft) (errors in variables; Fuller, Measurement
-    # Error Models, 1987, Sec. 1.1). The noise-free model's is not, so a short window
-    # (a stick cut short by a velocity step) would read stiffer than the model: correct
-    # for it, and only where it is under MAX_ATTENUATION
+    # K(i) is read only where the window's force range stands well above the force noise: the
+    # share of Ft's variance that is noise (1 - reliability ratio; Fuller, Measurement Error
+    # Models, 1987, Sec. 1.1) at most MAX_ATTENUATION
     var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
     reliability = 1.0 - rec.sigma_f**2 / var_f if var_f > 0.0 else 0.0
     if f_seg.size > 3 and reliability >= 1.0 - MAX_ATTENUATION and rec.d_ok(i_e0, i_e1):
-        compliance = regress_slope(f_seg, rec.delta_m[i_e0:i_e1]) / reliability
+        # dFt/d(delta) as the ratio of the two slopes in time. Regressing delta on Ft instead
+        # would mix in a post-slip ringing that has not died out: in it Ft and delta swing in
+        # opposition on the drive spring (dFt = -K0 d(delta)), and a slowly decaying ringing
+        # (a light, lightly damped slider) read the stiffness several times too high. A line in
+        # time averages the ringing out over the window's cycles; noise in either channel only
+        # adds scatter (the slopes' standard errors), no bias of first order
+        t_seg = t[i_e0:i_e1]
+        _, rate_d = line_fit(t, rec.delta_m, i_e0, i_e1, td)
+        compliance = rate_d / rate if rate != 0.0 else math.nan
         if np.isfinite(compliance) and compliance > 0.0:
-            feats["k_stick_N_per_m"][j] = 1.0 / compliance
-            se["k_stick_N_per_m"][j] = slope_se(f_seg, rec.sigma_d) / compliance
+            k_i = 1.0 / compliance
+            feats["k_stick_N_per_m"][j] = k_i
+            se["k_stick_N_per_m"][j] = k_i * math.hypot(
+                se_rate / abs(rate), slope_se(t_seg, rec.sigma_d) / abs(rate_d))
 
 
 def _drop_shape(rec: _Record, cyc: _Cycle, lv: _Levels, j: int,
