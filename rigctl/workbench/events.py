@@ -104,7 +104,7 @@ def detect_slips(
     if cand.size == 0:
         return empty
     breaks = np.flatnonzero(np.diff(cand) > gap) + 1
-    clusters = np.split(cand, breaks)
+    clusters = split_ring_chains(np.split(cand, breaks), ft_N, w, gap)
     d_sigma, d_informative = 0.0, False
     if delta_m is not None:
         d_ok = _in_range(delta_m, delta_valid)
@@ -151,6 +151,60 @@ def detect_slips(
     return SlipIndices(
         np.array(peaks, dtype=np.intp), np.array(ends, dtype=np.intp), np.array(signs, np.int8)
     )
+
+
+LONG_CHAIN_GAPS = 5
+"""A cluster of drops longer than this many merge gaps is a chain of ring swings (swings closer
+than the merge gap, ringing on above the threshold) that may hold the next slip."""
+CHAIN_GROWTH = 1.5
+"""In a chain, a drop this much larger than the one before it is not a swing of a decaying
+ringing."""
+
+
+def split_ring_chains(clusters: list[np.ndarray], ft_N: FloatArray, w: int,
+                      gap: int) -> list[np.ndarray]:
+    """Clusters of drop candidates, with every long chain cut before each slip in it.
+
+    A lightly damped slider ringing faster than the merge gap, above the threshold until the next
+    slip (a light slider, a low noise floor), chains every swing and that slip into one cluster,
+    and the slip would be lost. A long cluster (over LONG_CHAIN_GAPS merge gaps) is cut into runs
+    of consecutive drops (no gap larger than the drop window). A run starts a new slip when its
+    drop exceeds RING_SIZE_FRACTION of the slip that opened its part of the chain and
+    CHAIN_GROWTH times the run before it (a free oscillation's swings only shrink); the others
+    stay with that slip. Where the chain opens with drops under RING_SIZE_FRACTION of a later one
+    (the tail of an earlier ringing, a noise dip on the ramp), that later one is its slip, not a
+    new one: the cluster reads as before.
+    """
+    out: list[np.ndarray] = []
+    n = ft_N.shape[0]
+    for c in clusters:
+        if c.size == 0 or int(c[-1] - c[0]) <= LONG_CHAIN_GAPS * gap:
+            out.append(c)
+            continue
+        runs = np.split(c, np.flatnonzero(np.diff(c) > w + 1) + 1)
+        current = [runs[0]]
+        opened = last = _run_size(runs[0], ft_N, w, n)
+        for run in runs[1:]:
+            size = _run_size(run, ft_N, w, n)
+            if opened < RING_SIZE_FRACTION * size:
+                current.append(run)
+                opened = size
+            elif size > RING_SIZE_FRACTION * opened and size > CHAIN_GROWTH * last:
+                out.append(np.concatenate(current))
+                current, opened = [run], size
+            else:
+                current.append(run)
+            last = size
+        out.append(np.concatenate(current))
+    return out
+
+
+def _run_size(run: np.ndarray, ft_N: FloatArray, w: int, n: int) -> float:
+    """Force fall of a run of drop candidates in the direction of loading: the highest of its
+    first samples down to the lowest until a drop window after it."""
+    s = 1.0 if ft_N[int(run[0])] >= 0 else -1.0
+    i0, i1 = int(run[0]), min(int(run[-1]) + w + 1, n)
+    return float(np.max(s * ft_N[i0 : min(i0 + w + 2, n)]) - np.min(s * ft_N[i0:i1]))
 
 
 def _in_range(delta_m: FloatArray, delta_valid: np.ndarray | None) -> FloatArray:
