@@ -22,6 +22,7 @@ from rigctl.errors import SimulationError
 from rigctl.model import MAX_NORMAL_FORCE_N, ParameterError
 from rigctl.workbench.dataset import Dataset, protocols_present
 from rigctl.workbench.drive_profile import DriveProfile
+from rigctl.workbench.element_count import best_element_count
 from rigctl.workbench.evaluate import evaluate, simulate_run
 from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.fitting import CandidateTask, error_or_inf, fit_candidate, identify_model
@@ -377,6 +378,13 @@ def diagnose(
         best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
         model = refine(dataset, rnd.fits[best])
+        counted = best_element_count(dataset, model, say)
+        if counted is not model:
+            n_el = counted.choice.build().n_elements
+            say(f"N = {n_el} elements: error {model.error:.3g} -> {counted.error:.3g}")
+            note = "; ".join(filter(None, [note, f"N = {n_el} elements (error {model.error:.3g} "
+                                                 f"at N = {model.choice.build().n_elements})"]))
+            model = refine(dataset, counted)
         diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), best, model.error,
                                best_score.delta_bic, note))
         pool = [c for c in pool if c != best]

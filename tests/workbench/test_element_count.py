@@ -1,0 +1,102 @@
+"""Once an effect spreads the elements' thresholds, the model is refitted at other element
+counts and the best kept (workbench.md, "Element count")."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from rigctl.workbench import element_count as ec
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+
+
+def test_only_an_effect_that_spreads_the_thresholds_asks_for_it():
+    assert ec.spreads_elements(ModelChoice("paper", ("presliding",)))
+    assert ec.spreads_elements(ModelChoice("paper", ("wear", "presliding")))
+    assert not ec.spreads_elements(ModelChoice("paper"))
+    assert not ec.spreads_elements(ModelChoice("paper", ("wear", "rate_state")))
+
+
+def _result(choice: ModelChoice, error: float) -> FitResult:
+    return FitResult(choice=choice, error=error, feature_error={}, free=("mu_s", "mu_k"))
+
+
+@pytest.fixture
+def fits(monkeypatch):
+    """least_squares_fit stubbed: the error of each element count from ``fits.errors``."""
+    calls: list[int] = []
+    state = SimpleNamespace(errors={}, calls=calls)
+
+    def fake_fit(dataset: Any, choice: ModelChoice, free: Any, **kw: Any) -> FitResult:
+        n = choice.build().n_elements
+        calls.append(n)
+        return _result(choice, state.errors[n])
+
+    monkeypatch.setattr(ec, "least_squares_fit", fake_fit)
+    return state
+
+
+def _dataset(fixed: dict[str, float] | None = None) -> Any:
+    return SimpleNamespace(rig=SimpleNamespace(fixed=fixed or {}))
+
+
+def test_the_count_that_fits_best_is_kept(fits):
+    fits.errors = {5: 6.0, 20: 3.5, 40: 3.8}
+    model = _result(ModelChoice("paper", ("presliding",)), 5.0)
+    best = ec.best_element_count(_dataset(), model)
+    assert fits.calls == [5, 20, 40]  # not the model's own 10 again
+    assert best.choice.build().n_elements == 20
+    assert best.error == 3.5
+
+
+def test_a_small_gain_keeps_the_model(fits):
+    fits.errors = {5: 4.9, 20: 4.7, 40: 4.8}  # under MIN_GAIN: what more evaluations alone give
+    model = _result(ModelChoice("paper", ("presliding",)), 5.0)
+    assert ec.best_element_count(_dataset(), model) is model
+
+
+def test_no_scan_without_such_an_effect_or_where_the_rig_states_n(fits):
+    fits.errors = {5: 1.0, 10: 1.0, 20: 1.0, 40: 1.0}
+    plain = _result(ModelChoice("paper", ("wear",)), 5.0)
+    assert ec.best_element_count(_dataset(), plain) is plain
+    stated = _result(ModelChoice("paper", ("presliding",)).with_values({"n_elements": 20}), 5.0)
+    assert ec.best_element_count(_dataset({"n_elements": 20.0}), stated) is stated
+    assert fits.calls == []
+
+
+def test_auto_refits_at_the_best_count_once_presliding_is_added(monkeypatch):
+    """diagnose --auto: the step that adds presliding says which count it took, and the next
+    round starts from the model at that count."""
+    from rigctl.workbench import diagnose as dg
+    from rigctl.workbench.ranking import CandidateScore, Verdict
+
+    base = _result(ModelChoice("paper"), 40.0)
+    added = _result(ModelChoice("paper", ("presliding",)), 5.0)
+    rounds: list[FitResult] = []
+
+    def fake_round(dataset: Any, model: FitResult, pool: Any, **kw: Any) -> dg.Round:
+        rounds.append(model)
+        if len(rounds) == 1:
+            score = CandidateScore("presliding", 5.0, 0.9, -100.0, True, 2)
+            return dg.Round(model, [score], Verdict("presliding", ["presliding"], None),
+                            {"presliding": added}, [])
+        return dg.Round(model, [], Verdict("none", [], None), {}, [])
+
+    def fake_count(dataset: Any, result: FitResult, say: Any) -> FitResult:
+        return _result(result.choice.with_values({"n_elements": 20}), 3.5)
+
+    monkeypatch.setattr(dg, "run_round", fake_round)
+    monkeypatch.setattr(dg, "better_model", lambda *a: None)
+    monkeypatch.setattr(dg, "refine", lambda dataset, r: r)
+    monkeypatch.setattr(dg, "best_element_count", fake_count)
+    monkeypatch.setattr(dg, "_keep_effects_that_earn_their_place", lambda *a: None)
+    ds = SimpleNamespace(n_events=10, runs=[], rig=SimpleNamespace(fixed={}))
+    monkeypatch.setattr(dg, "protocols_present", lambda d: [])
+    diag = dg.diagnose(ds, ModelChoice("paper"), auto=True, baseline=base)  # type: ignore[arg-type]
+    step = diag.steps[1]
+    assert step.added == "presliding" and step.error == 3.5
+    assert "N = 20 elements (error 5 at N = 10)" in step.note
+    assert rounds[1].choice.build().n_elements == 20
