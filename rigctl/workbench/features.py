@@ -57,7 +57,7 @@ COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
     "dft_dt_N_per_s",
 )
-MAX_ATTENUATION = 0.1
+MAX_NOISE_SHARE = 0.1
 """K(i) is read only where the force noise makes at most 10 % of Ft's variance in the window (the
 force range of the window at least about 11 noise RMS)."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
@@ -348,10 +348,10 @@ def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray
     f_seg = rec.ft_N[i_e0:i_e1]
     # K(i) is read only where the window's force range stands well above the force noise: the
     # share of Ft's variance that is noise (1 - reliability ratio; Fuller, Measurement Error
-    # Models, 1987, Sec. 1.1) at most MAX_ATTENUATION
+    # Models, 1987, Sec. 1.1) at most MAX_NOISE_SHARE
     var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
     reliability = 1.0 - rec.sigma_f**2 / var_f if var_f > 0.0 else 0.0
-    if f_seg.size > 3 and reliability >= 1.0 - MAX_ATTENUATION and rec.d_ok(i_e0, i_e1):
+    if f_seg.size > 3 and reliability >= 1.0 - MAX_NOISE_SHARE and rec.d_ok(i_e0, i_e1):
         # dFt/d(delta) as the ratio of the two slopes in time. Regressing delta on Ft instead
         # would mix in a post-slip ringing that has not died out: in it Ft and delta swing in
         # opposition on the drive spring (dFt = -K0 d(delta)), and a slowly decaying ringing
