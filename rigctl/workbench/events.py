@@ -125,7 +125,7 @@ def detect_slips(
         seg = s * ft_N[c0 : min(c0 + w + 2, n)]
         # the peak is the last sample before the first clear one-sample fall (under noise the
         # highest sample may sit a few samples early); else the highest sample
-        size_est = float(np.max(seg) - np.min(s * ft_N[c0 : i_end + 1]))
+        size_est = _run_size(c, ft_N, w, n)
         falls = np.flatnonzero(seg[:-1] - seg[1:] > max(0.5 * thr, 0.1 * size_est))
         i_pk = c0 + int(falls[0]) if falls.size else c0 + int(np.argmax(seg))
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))

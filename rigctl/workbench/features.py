@@ -339,7 +339,8 @@ def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray
     _, rate = line_fit(t, rec.ft_N, i_e0, i_e1, td)
     _, rate_end = line_fit(t, rec.ft_N, i_n0, cyc.i_pk + 1, td)
     feats["rate_N_per_s"][j] = s * rate
-    se_rate = slope_se(t[i_e0:i_e1], rec.sigma_f)
+    t_seg = t[i_e0:i_e1]
+    se_rate = slope_se(t_seg, rec.sigma_f)
     se_end = slope_se(t[i_n0 : cyc.i_pk + 1], rec.sigma_f)
     if rate != 0.0 and np.isfinite(rate):
         feats["rounding"][j] = rate_end / rate
@@ -358,11 +359,9 @@ def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray
         # (a light, lightly damped slider) read the stiffness several times too high. A line in
         # time averages the ringing out over the window's cycles; noise in either channel only
         # adds scatter (the slopes' standard errors), no bias of first order
-        t_seg = t[i_e0:i_e1]
         _, rate_d = line_fit(t, rec.delta_m, i_e0, i_e1, td)
-        compliance = rate_d / rate if rate != 0.0 else math.nan
-        if np.isfinite(compliance) and compliance > 0.0:
-            k_i = 1.0 / compliance
+        k_i = rate / rate_d if rate_d != 0.0 else math.nan
+        if np.isfinite(k_i) and k_i > 0.0:
             feats["k_stick_N_per_m"][j] = k_i
             se["k_stick_N_per_m"][j] = k_i * math.hypot(
                 se_rate / abs(rate), slope_se(t_seg, rec.sigma_d) / abs(rate_d))
