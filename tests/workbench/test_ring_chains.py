@@ -6,23 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rigctl.model import build_model
-from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.events import split_ring_chains
-
-# a light slider with 1 % damping on a low noise floor: it rings at 34 Hz (swings 29 ms apart,
-# under the 30 ms merge gap) above the detection threshold through the whole 1 s stick
-RIG = {"k0_N_per_m": 1.9e3, "kts_N_per_m": 4.1e3, "m_kg": 0.13, "c0_N_s_per_m": 0.32,
-       "mu_s": 0.39, "mu_k": 0.29, "mu_smax": 0.45, "kt0_N_per_m": 6.5e3, "n_elements": 29}
+from tests.workbench.synth import LIGHT_RIG, light_rig_tlre
 
 
 @pytest.fixture(scope="module")
 def ringing_rig():
-    runs = simulate_campaign(build_model("paper", params=RIG), "tlre", seed=3,
-                             sample_rate_hz=3450.0, fn_N=70.0, velocity_m_s=7.4e-3,
-                             duration_scale=0.5)
-    return prepare_dataset(runs)
+    """The light slider at 1 % damping on a low noise floor: it rings at 34 Hz (swings 29 ms
+    apart, under the 30 ms merge gap) above the detection threshold through the whole 1 s stick."""
+    return prepare_dataset(light_rig_tlre(c0_N_s_per_m=LIGHT_RIG["c0_N_s_per_m"]))
 
 
 def test_every_slip_of_a_ringing_chain_is_found(ringing_rig):
