@@ -13,7 +13,12 @@ of constant stage velocity and load):
   two records have drifted out of phase.
 
 A measured slip in a segment where the model has none is unpaired (-1); model slips in segments where
-the measurement has none are *spurious* and counted separately.
+the measurement has none are *spurious* and counted separately. Where the model has only its first
+slip in a segment, the measurement's later slips are compared with that one slip, which then *stands
+in* for the later slips the model does not make (:func:`stand_in_pairs`): the error charges such a
+pair at most what a missing slip costs (:mod:`rigctl.workbench.metrics`), because a first slip (the
+end of an initial stage, a peak after a hold) can differ from a stable one by far more than any
+model's stable slip would.
 
 **A slip at a stop is a tie.** When the stage stops with the interface a hair below its threshold,
 whether the slip comes at the stop or when the stage restarts, a whole hold later, is decided by
@@ -77,6 +82,22 @@ def match_events(measured: EventTable, model: EventTable,
             d_lo = np.abs(t_model[lo] - measured.t_drop_s[mi[1:]])
             d_hi = np.abs(t_model[hi] - measured.t_drop_s[mi[1:]])
             out[mi[1:]] = rest[np.where(d_hi < d_lo, hi, lo)]
+    return out
+
+
+def stand_in_pairs(measured: EventTable, model: EventTable, match: np.ndarray,
+                   drive: DriveProfile | None = None) -> np.ndarray:
+    """Per measured event: paired (by :func:`match_events`) with the model's first slip of its
+    segment although it is not the measurement's first slip there - the model has no later slip to
+    compare it with (see the module docstring)."""
+    out = np.zeros(measured.n, dtype=bool)
+    if measured.n == 0 or model.n == 0:
+        return out
+    seg_meas, seg_model = pairing_segments(measured, drive), pairing_segments(model, drive)
+    first_meas = np.r_[True, seg_meas[1:] != seg_meas[:-1]]
+    first_model = np.r_[True, seg_model[1:] != seg_model[:-1]]
+    paired = match >= 0
+    out[paired] = first_model[match[paired]] & ~first_meas[paired]
     return out
 
 

@@ -16,7 +16,10 @@ blocks stay short enough to keep trends over cycles, holds and velocity steps. T
 
 every feature weighing the same whatever its number of events; E is about 1 when the model is
 within the measurement's scatter. A measured slip the model does not make counts z = 5 per slip; a
-model slip in a segment where the measurement has none counts z = 3 per slip (in ``drop_N``).
+model slip in a segment where the measurement has none counts z = 3 per slip (in ``drop_N``). A
+measured slip compared with the model's first slip of its segment for want of a later one
+(:func:`~rigctl.workbench.alignment.stand_in_pairs`) counts at most z = 5 per feature, as a missing
+slip would.
 Nothing here compares time series point by point over many cycles: slip timing drifts, and such an
 RMSE would measure the phase drift, not the physics (docs/workbench.md, "Why not a pointwise RMSE").
 """
@@ -28,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rigctl.workbench.alignment import match_events, spurious_counts
+from rigctl.workbench.alignment import match_events, spurious_counts, stand_in_pairs
 from rigctl.workbench.dataset import Dataset, PreparedRun
 from rigctl.workbench.feature_info import FEATURES, IMAGE_FEATURES
 from rigctl.workbench.features import EVENT_FEATURES, EventTable
@@ -54,6 +57,9 @@ class RunComparison:
     image_residual: dict[str, float] = field(default_factory=dict)
     """Image features (:mod:`rigctl.workbench.image_features`): model - measured; empty for a run
     without frames."""
+    stand_in: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    """Per measured event: compared with the model's first slip of its segment, which stands in for
+    a later slip the model does not make (its z is capped at MISSING_EVENT_Z); empty: none is."""
 
 
 def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
@@ -85,7 +91,8 @@ def compare_run(run: PreparedRun, model_events: EventTable,
         for name in IMAGE_FEATURES:
             if math.isfinite(measured[name]):
                 image[name] = (model_image or {}).get(name, math.nan) - measured[name]
-    return RunComparison(match, residual, missing, init, spur, image)
+    stand_in = stand_in_pairs(meas, model_events, match, run.drive)
+    return RunComparison(match, residual, missing, init, spur, image, stand_in)
 
 
 @dataclass
@@ -120,6 +127,9 @@ def score(dataset: Dataset, model_events: list[EventTable],
         for i_run, (run, comp) in enumerate(zip(dataset.runs, comps, strict=True)):
             meas = run.events.features[name]
             z_ev = comp.residual[name] / dataset.event_sigma(i_run, name)
+            if comp.stand_in.any():
+                z_ev = np.where(comp.stand_in,
+                                np.clip(z_ev, -MISSING_EVENT_Z, MISSING_EVENT_Z), z_ev)
             z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
             zb = np.zeros(len(run.blocks))
             irregular = run.block_irregular or (False,) * len(run.blocks)

@@ -7,7 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from rigctl.workbench.alignment import HOLD_TIE_S, match_events, pairing_segments, spurious_counts
+from rigctl.workbench.alignment import (
+    HOLD_TIE_S,
+    match_events,
+    pairing_segments,
+    spurious_counts,
+    stand_in_pairs,
+)
 from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings
@@ -103,3 +109,22 @@ def test_a_measured_slip_the_model_does_not_make_is_penalised():
     sc = score(_dataset(meas, 2), [model])
     assert sc.feature_error["peak_N"] >= MISSING_EVENT_Z / math.sqrt(3) - 1e-9
     assert len(meas.first_in_segment()) == 3 and BLOCK_SIZE >= 2
+
+
+def test_a_first_slip_standing_in_for_missing_later_ones_costs_no_more_than_missing_slips():
+    # the measurement: a big first slip (the end of the initial stage), then two small stable ones;
+    # the model makes the first slip exactly and no later one in the segment
+    meas = _table([1.0, 4.0, 7.0], [0, 0, 0], peak=[45.0, 20.0, 20.0])
+    only_first = _table([1.0], [0], peak=[45.0])
+    match = match_events(meas, only_first)
+    assert match.tolist() == [0, 0, 0]
+    assert stand_in_pairs(meas, only_first, match).tolist() == [False, True, True]
+    sc = score(_dataset(meas, 1), [only_first])
+    # blocks [first], [two later]: the later block counts z = 5 per slip (not 25 N / 0.1 N = 250),
+    # so peak_N's error is sqrt((0 + (5 sqrt 2)^2) / 2) = 5
+    assert sc.feature_error["peak_N"] == pytest.approx(MISSING_EVENT_Z)
+    assert sc.feature_error["drop_N"] == 0.0  # the other features agree: capped, not replaced
+    # a model that makes the later slips is compared slip by slip, uncapped
+    both = _table([1.0, 4.5], [0, 0], peak=[45.0, 45.0])
+    assert stand_in_pairs(meas, both, match_events(meas, both)).tolist() == [False] * 3
+    assert score(_dataset(meas, 1), [both]).feature_error["peak_N"] > 100.0
