@@ -26,6 +26,10 @@ class FeatureInfo:
     False for the initial-stage curve, read once per run."""
     from_slope: bool = False
     """Read from a fitted slope, whose per-event standard error the event table keeps."""
+    zero_free: bool = False
+    """Has no zero of its own in a run (a probe's zero is arbitrary): compared up to a constant, each
+    side's values about their median over the run's paired events
+    (:func:`rigctl.workbench.metrics.compare_run`)."""
     from_images: bool = False
     """Read from the run file's camera frames (:mod:`rigctl.workbench.image_features`), once per
     run; a run without frames has none."""
@@ -55,7 +59,8 @@ FEATURES: dict[str, FeatureInfo] = {
         FeatureInfo("fn_swing_N", "N", log=False, phrase="normal-force swings at slips",
                     floor_kind="drop"),
         FeatureInfo("lag_m", "m", log=False,
-                    phrase="probe readings delta relative to the stage (lag)", floor_kind="slip"),
+                    phrase="probe readings delta relative to the stage (lag)", floor_kind="slip",
+                    zero_free=True),
         FeatureInfo("init_k_N_per_m", "N/m", log=True, phrase="initial-stage stiffnesses",
                     floor_kind="relative", per_event=False),
         FeatureInfo("p_tilt_initial", "-", log=False,

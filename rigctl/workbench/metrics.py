@@ -38,6 +38,10 @@ from rigctl.workbench.features import EVENT_FEATURES, EventTable
 from rigctl.workbench.signals import FloatArray
 
 MISSING_EVENT_Z = 5.0
+MARGINAL_DROP_FRACTION = 0.5
+"""A measured slip whose settled drop (``drop_N``) is under this fraction of the run's detection
+threshold was lifted over the threshold by the record's noise; a model that does not make it is not
+charged for it (see the module docstring)."""
 SPURIOUS_EVENT_Z = 3.0
 INIT_FEATURE = "init_k_N_per_m"
 
@@ -60,6 +64,9 @@ class RunComparison:
     stand_in: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Per measured event: compared with the model's first slip of its segment, which stands in for
     a later slip the model does not make (its z is capped at MISSING_EVENT_Z); empty: none is."""
+    excused: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    """Per measured event: a marginal slip (MARGINAL_DROP_FRACTION) the model has no slip for, left
+    out of the error; empty: none is."""
 
 
 def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
@@ -70,18 +77,33 @@ def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
     return model - meas
 
 
+def _less_offset(meas: FloatArray, model: FloatArray, stand_in: np.ndarray) -> FloatArray:
+    """A zero-free feature's residuals, each side's values taken about its median over the same
+    paired events (stand-in pairs, which compare unlike slips, left out). Each record's table gives
+    them about its median over its own slips, so a slip one side lacks would otherwise shift every
+    residual of the run. Where every slip is paired this changes nothing."""
+    r = model - meas
+    use = np.isfinite(r) & ~stand_in
+    if not use.any():
+        return r
+    out: FloatArray = r - (float(np.median(model[use])) - float(np.median(meas[use])))
+    return out
+
+
 def compare_run(run: PreparedRun, model_events: EventTable,
                 model_image: dict[str, float] | None = None) -> RunComparison:
     meas = run.events
     match = match_events(meas, model_events, run.drive)
     paired = match >= 0
+    stand_in = stand_in_pairs(meas, model_events, match, run.drive)
     residual: dict[str, FloatArray] = {}
     missing: dict[str, np.ndarray] = {}
     for name in EVENT_FEATURES:
         mv = meas.features[name]
         model_v = np.full(meas.n, np.nan)
         model_v[paired] = model_events.features[name][match[paired]]
-        residual[name] = _residual(name, mv, model_v)
+        residual[name] = (_less_offset(mv, model_v, stand_in) if FEATURES[name].zero_free
+                          else _residual(name, mv, model_v))
         missing[name] = np.isfinite(mv) & ~np.isfinite(residual[name])
     init = _residual(INIT_FEATURE, meas.init_k_N_per_m, model_events.init_k_N_per_m)
     spur = spurious_counts(meas, model_events, run.drive.n_segments(), run.drive)
@@ -91,8 +113,9 @@ def compare_run(run: PreparedRun, model_events: EventTable,
         for name in IMAGE_FEATURES:
             if math.isfinite(measured[name]):
                 image[name] = (model_image or {}).get(name, math.nan) - measured[name]
-    stand_in = stand_in_pairs(meas, model_events, match, run.drive)
-    return RunComparison(match, residual, missing, init, spur, image, stand_in)
+    marginal = np.abs(meas.features["drop_N"]) < MARGINAL_DROP_FRACTION * run.read.detection.threshold_N
+    excused = marginal & (~paired | stand_in)
+    return RunComparison(match, residual, missing, init, spur, image, stand_in, excused)
 
 
 @dataclass
@@ -133,8 +156,9 @@ def score(dataset: Dataset, model_events: list[EventTable],
             z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
             zb = np.zeros(len(run.blocks))
             irregular = run.block_irregular or (False,) * len(run.blocks)
+            counted = ~comp.excused if comp.excused.any() else np.ones(meas.shape[0], bool)
             for b, idx in enumerate(run.blocks):
-                active = np.isfinite(meas[idx])
+                active = np.isfinite(meas[idx]) & counted[idx]
                 if not active.any():
                     continue
                 z = z_ev[idx][active]

@@ -128,3 +128,34 @@ def test_a_first_slip_standing_in_for_missing_later_ones_costs_no_more_than_miss
     both = _table([1.0, 4.5], [0, 0], peak=[45.0, 45.0])
     assert stand_in_pairs(meas, both, match_events(meas, both)).tolist() == [False] * 3
     assert score(_dataset(meas, 1), [both]).feature_error["peak_N"] > 100.0
+
+
+def test_a_marginal_slip_the_model_does_not_make_is_not_charged():
+    # detection threshold 0.5 N (_dataset); a settled drop of 0.2 N is under half of it: the
+    # record's noise lifted that fall over the threshold
+    meas = _table([1.0, 4.0, 51.0, 54.0], [0, 0, 1, 1], drop_N=[1.0, 1.0, 0.2, 1.0])
+    model = _table([1.0, 4.0], [0, 0], drop_N=[1.0, 1.0])
+    sc = score(_dataset(meas, 2), [model])
+    assert sc.comparisons[0].excused.tolist() == [False, False, True, False]
+    # the marginal slip costs nothing; the full-size slip of the same segment still costs z = 5
+    assert sc.feature_error["peak_N"] == pytest.approx(MISSING_EVENT_Z / math.sqrt(3))
+    # the same slip at full size is charged like any missing slip
+    full = _table([1.0, 4.0, 51.0, 54.0], [0, 0, 1, 1])
+    assert score(_dataset(full, 2), [model]).feature_error["peak_N"] == pytest.approx(
+        MISSING_EVENT_Z * math.sqrt(2 / 4))
+    # a marginal slip compared with a model slip of its own is compared as usual
+    paired = _table([1.0, 4.0, 51.0, 54.0], [0, 0, 1, 1], peak=[45.0, 45.0, 46.0, 45.0])
+    assert score(_dataset(meas, 2), [paired]).feature_error["peak_N"] > 1.0
+
+
+def test_the_lag_is_compared_up_to_a_constant_a_stand_in_left_out():
+    # the probes' zero is arbitrary: a model whose lags are the measured ones plus 10 m matches
+    meas = _table([1.0, 4.0, 7.0, 10.0], [0, 0, 0, 0], lag_m=[1.0, 2.0, 3.0, 4.0])
+    shifted = _table([1.0, 4.0, 7.0, 10.0], [0, 0, 0, 0], lag_m=[11.0, 12.0, 13.0, 14.0])
+    assert score(_dataset(meas, 1), [shifted]).feature_error["lag_m"] == 0.0
+    # the constant comes from the true pairs only: stand-in pairs (unlike slips) would shift it
+    meas2 = _table([1.0, 4.0, 7.0], [0, 0, 0], lag_m=[1.0, 2.0, 3.0])
+    model2 = _table([1.0], [0], lag_m=[11.0])
+    comp = score(_dataset(meas2, 1), [model2]).comparisons[0]
+    assert comp.stand_in.tolist() == [False, True, True]
+    assert comp.residual["lag_m"][0] == 0.0
