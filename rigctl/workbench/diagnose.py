@@ -378,7 +378,8 @@ def diagnose(
         best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
         model = refine(dataset, rnd.fits[best])
-        counted = best_element_count(dataset, model, say)
+        counted = best_element_count(dataset, model, say, workers=workers, scheduler=scheduler,
+                                     timeout_s=timeout_s, in_process=in_process)
         if counted is not model:
             n_el = counted.choice.build().n_elements
             say(f"N = {n_el} elements: error {model.error:.3g} -> {counted.error:.3g}")

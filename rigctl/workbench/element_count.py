@@ -8,11 +8,15 @@ and 40.8 at N = 10, 20 and 40. An effect that spreads the thresholds over the el
 stick ramp round off in N steps, and there N matters: ``presliding`` alone scores 4.98 at N = 10
 and 3.48 at N = 20, with ``contact_degradation`` as well 3.83 and 1.39. So once such an effect is
 in the model, the model is refitted at each count of :data:`ELEMENT_COUNTS` and the best kept.
+The refits are independent and run in parallel like the candidate fits
+(:mod:`rigctl.workbench.parallel`: the same workers, time limit and Dask scheduler).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
@@ -20,6 +24,7 @@ from rigctl.model.effects import Effect
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.identify import FitResult, free_params, least_squares_fit
 from rigctl.workbench.model_choice import ModelChoice, effect_class
+from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 
 ELEMENT_COUNTS: tuple[int, ...] = (5, 10, 20, 40)
 """Counts tried (a factor 2 apart: the rounding changes little for smaller steps)."""
@@ -40,25 +45,47 @@ def spreads_elements(choice: ModelChoice) -> bool:
     return False
 
 
+@dataclass(frozen=True)
+class CountTask:
+    """One refit at another element count, as data (sent to a worker)."""
+
+    dataset: Dataset
+    choice: ModelChoice
+    free: tuple[str, ...]
+    max_nfev: int
+
+
+def fit_at_count(task: CountTask) -> FitResult | TaskFailed:
+    """The model of ``task`` refitted at its element count; a model that cannot be built or
+    simulated at that count is a :class:`TaskFailed` with the reason."""
+    try:
+        free = free_params(task.choice, list(task.free))
+        return least_squares_fit(task.dataset, task.choice, free, max_nfev=task.max_nfev)
+    except (ParameterError, SimulationError) as exc:
+        return TaskFailed(f"{type(exc).__name__}: {exc}")
+
+
 def best_element_count(
     dataset: Dataset, result: FitResult, say: Callable[[str], None] = lambda _m: None,
-    max_nfev: int = MAX_NFEV,
+    max_nfev: int = MAX_NFEV, *, workers: int | None = None, scheduler: Any = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S, in_process: bool = False,
 ) -> FitResult:
     """``result`` refitted at the element count that fits best, or ``result`` itself where no
-    effect spreads the thresholds, the rig description fixes N, or no count gains MIN_GAIN."""
+    effect spreads the thresholds, the rig description fixes N, or no count gains MIN_GAIN.
+    ``workers``, ``scheduler``, ``timeout_s`` and ``in_process`` as for
+    :func:`rigctl.workbench.parallel.run_tasks`."""
     if "n_elements" in dataset.rig.fixed or not spreads_elements(result.choice):
         return result
     n_now = result.choice.build().n_elements
-    free = free_params(result.choice, list(result.free))
+    counts = [n for n in ELEMENT_COUNTS if n != n_now]
+    tasks = [CountTask(dataset, result.choice.with_values({"n_elements": n}), tuple(result.free),
+                       max_nfev) for n in counts]
+    outcomes = run_tasks(fit_at_count, tasks, workers=workers, scheduler=scheduler,
+                         timeout_s=timeout_s, in_process=in_process)
     best = result
-    for n in ELEMENT_COUNTS:
-        if n == n_now:
-            continue
-        try:
-            fit = least_squares_fit(dataset, result.choice.with_values({"n_elements": n}), free,
-                                    max_nfev=max_nfev)
-        except (ParameterError, SimulationError) as exc:
-            say(f"  N = {n} elements: no fit ({exc})")
+    for n, fit in zip(counts, outcomes, strict=True):
+        if isinstance(fit, TaskFailed):
+            say(f"  N = {n} elements: no fit ({fit.message.splitlines()[0]})")
             continue
         say(f"  N = {n} elements: error {fit.error:.3g} (N = {n_now}: {result.error:.3g})")
         if fit.misses_most_slips or not fit.error < (1.0 - MIN_GAIN) * best.error:

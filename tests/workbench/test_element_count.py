@@ -46,7 +46,7 @@ def _dataset(fixed: dict[str, float] | None = None) -> Any:
 def test_the_count_that_fits_best_is_kept(fits):
     fits.errors = {5: 6.0, 20: 3.5, 40: 3.8}
     model = _result(ModelChoice("paper", ("presliding",)), 5.0)
-    best = ec.best_element_count(_dataset(), model)
+    best = ec.best_element_count(_dataset(), model, in_process=True)
     assert fits.calls == [5, 20, 40]  # not the model's own 10 again
     assert best.choice.build().n_elements == 20
     assert best.error == 3.5
@@ -55,16 +55,39 @@ def test_the_count_that_fits_best_is_kept(fits):
 def test_a_small_gain_keeps_the_model(fits):
     fits.errors = {5: 4.9, 20: 4.7, 40: 4.8}  # under MIN_GAIN: what more evaluations alone give
     model = _result(ModelChoice("paper", ("presliding",)), 5.0)
-    assert ec.best_element_count(_dataset(), model) is model
+    assert ec.best_element_count(_dataset(), model, in_process=True) is model
 
 
 def test_no_scan_without_such_an_effect_or_where_the_rig_states_n(fits):
     fits.errors = {5: 1.0, 10: 1.0, 20: 1.0, 40: 1.0}
     plain = _result(ModelChoice("paper", ("wear",)), 5.0)
-    assert ec.best_element_count(_dataset(), plain) is plain
+    assert ec.best_element_count(_dataset(), plain, in_process=True) is plain
     stated = _result(ModelChoice("paper", ("presliding",)).with_values({"n_elements": 20}), 5.0)
-    assert ec.best_element_count(_dataset({"n_elements": 20.0}), stated) is stated
+    assert ec.best_element_count(_dataset({"n_elements": 20.0}), stated, in_process=True) is stated
     assert fits.calls == []
+
+
+def test_the_refits_run_in_worker_processes_and_a_failed_one_is_said(fits, monkeypatch):
+    """The counts are fitted in parallel worker processes (forked: the stub goes with them), and a
+    count whose fit dies is reported and skipped, not fatal."""
+    import os
+    parent = os.getpid()
+    fits.errors = {5: 6.0, 20: 3.5, 40: 3.8}
+    real = ec.least_squares_fit
+
+    def in_a_worker(dataset: Any, choice: ModelChoice, free: Any, **kw: Any) -> FitResult:
+        assert os.getpid() != parent
+        if choice.build().n_elements == 40:
+            os._exit(3)  # a worker that dies
+        return real(dataset, choice, free, **kw)
+
+    monkeypatch.setattr(ec, "least_squares_fit", in_a_worker)
+    said: list[str] = []
+    model = _result(ModelChoice("paper", ("presliding",)), 5.0)
+    best = ec.best_element_count(_dataset(), model, said.append, workers=2)
+    assert best.choice.build().n_elements == 20 and best.error == 3.5
+    assert any("N = 40 elements: no fit" in m for m in said)
+    assert fits.calls == []  # every fit ran in a child process
 
 
 def test_auto_refits_at_the_best_count_once_presliding_is_added(monkeypatch):
@@ -85,7 +108,7 @@ def test_auto_refits_at_the_best_count_once_presliding_is_added(monkeypatch):
                             {"presliding": added}, [])
         return dg.Round(model, [], Verdict("none", [], None), {}, [])
 
-    def fake_count(dataset: Any, result: FitResult, say: Any) -> FitResult:
+    def fake_count(dataset: Any, result: FitResult, say: Any, **kw: Any) -> FitResult:
         return _result(result.choice.with_values({"n_elements": 20}), 3.5)
 
     monkeypatch.setattr(dg, "run_round", fake_round)
