@@ -176,10 +176,16 @@ def residual_map(dataset: Dataset, comps: list[RunComparison]) -> ResidualMap:
     return ResidualMap(by_time, by_stage, by_phase, trends, bias, table)
 
 
+FACTOR_FROM = 3.0
+"""A ratio feature off by this factor or more is said as "by a factor of N", not in percent."""
+
+
 def _amount(name: str, r: FloatArray) -> str:
     info = FEATURES[name]
     m = float(np.mean(r))
     if info.log:
+        if abs(m) >= math.log(FACTOR_FROM):  # "36265 %" says less than "a factor of 364"
+            return f"a factor of {math.exp(abs(m)):.3g}"
         return f"{abs(math.expm1(m)) * 100:.0f} %"
     unit = info.unit
     if unit == "m":

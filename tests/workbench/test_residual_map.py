@@ -62,3 +62,11 @@ def test_nothing_is_reported_for_residuals_within_the_scatter():
     rmap = residual_map(ds, comps)
     assert discrepancies(rmap) == []
     assert rmap.by_phase["stick"] < 2.0 and rmap.by_phase["slip"] < 2.0
+
+
+def test_a_ratio_many_times_off_is_said_as_a_factor():
+    from rigctl.workbench.residual_map import _amount
+    assert _amount("k_stick_N_per_m", np.full(5, np.log(364.0))) == "a factor of 364"
+    assert _amount("k_stick_N_per_m", np.full(5, -np.log(10.0))) == "a factor of 10"
+    assert _amount("k_stick_N_per_m", np.full(5, np.log(1.5))) == "50 %"
+    assert _amount("k_stick_N_per_m", np.full(5, np.log(0.6))) == "40 %"
