@@ -19,7 +19,12 @@ within the measurement's scatter. A measured slip the model does not make counts
 model slip in a segment where the measurement has none counts z = 3 per slip (in ``drop_N``). A
 measured slip compared with the model's first slip of its segment for want of a later one
 (:func:`~rigctl.workbench.alignment.stand_in_pairs`) counts at most z = 5 per feature, as a missing
-slip would.
+slip would. A measured slip whose settled drop is under half the detection threshold is *marginal*:
+the record's noise carried its fall over the threshold, and a noise-free model's twin of it does not
+cross; a model without a slip for it (missing, or only a stand-in) is not charged for it. ``lag_m``
+has no zero of its own (the probes' zero is arbitrary) and is compared up to a constant
+(:func:`_less_offset`).
+
 Nothing here compares time series point by point over many cycles: slip timing drifts, and such an
 RMSE would measure the phase drift, not the physics (docs/workbench.md, "Why not a pointwise RMSE").
 """
@@ -67,6 +72,14 @@ class RunComparison:
     excused: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Per measured event: a marginal slip (MARGINAL_DROP_FRACTION) the model has no slip for, left
     out of the error; empty: none is."""
+
+    def like_for_like(self, name: str) -> FloatArray:
+        """The residuals of ``name`` where a slip was compared with its like: NaN for stand-in
+        pairs too (what the residual map and the physical errors describe)."""
+        if not self.stand_in.any():
+            return self.residual[name]
+        out: FloatArray = np.where(self.stand_in, np.nan, self.residual[name])
+        return out
 
 
 def _residual(name: str, meas: FloatArray, model: FloatArray) -> FloatArray:
@@ -247,7 +260,7 @@ def physical_errors(comps: list[RunComparison]) -> dict[str, FeatureError]:
         elif name == INIT_FEATURE:
             r = np.concatenate([c.init_residual for c in comps])
         else:
-            r = np.concatenate([c.residual[name] for c in comps])
+            r = np.concatenate([c.like_for_like(name) for c in comps])
         r = r[np.isfinite(r)]
         if r.size == 0:
             continue

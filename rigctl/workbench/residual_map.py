@@ -93,7 +93,7 @@ class ResidualMap:
 def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict[str, FloatArray]]:
     out: dict[str, dict[str, FloatArray]] = {}
     for name in EVENT_FEATURES:
-        r = np.concatenate([c.residual[name] for c in comps]) if comps else np.zeros(0)
+        r = np.concatenate([c.like_for_like(name) for c in comps]) if comps else np.zeros(0)
         sig = np.concatenate([dataset.event_sigma(i, name) for i in range(len(dataset.runs))]) \
             if comps else np.zeros(0)
         cols: dict[str, FloatArray] = {"r": r, "z": r / sig}

@@ -18,7 +18,8 @@ from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings
 from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
-from rigctl.workbench.metrics import MISSING_EVENT_Z, score
+from rigctl.workbench.metrics import MISSING_EVENT_Z, physical_errors, score
+from rigctl.workbench.residual_map import _event_table
 
 
 def _table(times, segment, peak=45.0, **overrides):
@@ -124,6 +125,10 @@ def test_a_first_slip_standing_in_for_missing_later_ones_costs_no_more_than_miss
     # so peak_N's error is sqrt((0 + (5 sqrt 2)^2) / 2) = 5
     assert sc.feature_error["peak_N"] == pytest.approx(MISSING_EVENT_Z)
     assert sc.feature_error["drop_N"] == 0.0  # the other features agree: capped, not replaced
+    # the physical errors and the residual map describe like-for-like pairs only
+    assert physical_errors(sc.comparisons)["peak_N"].n == 1
+    z = _event_table(_dataset(meas, 1), sc.comparisons)["peak_N"]["z"]
+    assert np.isfinite(z).tolist() == [True, False, False]
     # a model that makes the later slips is compared slip by slip, uncapped
     both = _table([1.0, 4.5], [0, 0], peak=[45.0, 45.0])
     assert stand_in_pairs(meas, both, match_events(meas, both)).tolist() == [False] * 3
