@@ -27,6 +27,7 @@ from rigctl.workbench.feature_info import (
     UNIT_FLOOR,
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
+from rigctl.workbench.fn_coupling import campaign_coupling
 from rigctl.workbench.image_features import ImageFeatures, read_image_features
 from rigctl.workbench.long_records import WINDOW_KEY
 from rigctl.workbench.probe_range import probe_range
@@ -186,15 +187,17 @@ def check_run(run: MeasuredRun) -> None:
 
 
 def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
-                images: bool = False, ringing: bool = False) -> PreparedRun:
+                images: bool = False, ringing: bool = False,
+                coupling: tuple[float, float] | None = None) -> PreparedRun:
     """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes.
 
     ``images``: also read the run file's camera frames once, streamed, into the image features
     (:func:`rigctl.workbench.image_features.read_image_features`). ``ringing``: also fit the
     post-slip ringing (:func:`rigctl.workbench.ringing.run_ring_fits`; a model's starting mass
-    and damping, not needed to analyse a run)."""
+    and damping, not needed to analyse a run). ``coupling``: the campaign's dFn/dFt
+    (:func:`rigctl.workbench.drive_profile.drive_profile`)."""
     check_run(run)
-    prof = drive_profile(run)
+    prof = drive_profile(run, coupling=coupling)
     t = run.t_s - run.t_s[0]
     probes = probe_range(run, delta_measured)
     valid = probes.delta_valid if probes.any_over else None
@@ -402,9 +405,13 @@ def prepare_dataset(runs: list[MeasuredRun]) -> Dataset:
     prepared: list[PreparedRun] = []
     rig = campaign_description(runs)
     notes: list[str] = rig.notes()
+    for run in runs:
+        check_run(run)
+    coupling = campaign_coupling([(r.ft_N, r.fn_N) for r in runs])
     for i, run in enumerate(runs):
         name = run.source or f"run{i + 1}"
-        pr = prepare_run(run, name, rig.delta_measured, images=True, ringing=True)
+        pr = prepare_run(run, name, rig.delta_measured, images=True, ringing=True,
+                         coupling=coupling)
         if WINDOW_KEY in run.metadata:
             notes.append(run.metadata[WINDOW_KEY])
         notes.extend(pr.notes)

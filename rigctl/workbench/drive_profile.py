@@ -433,8 +433,11 @@ def _apart_intervals(t: FloatArray, fn: FloatArray) -> list[tuple[float, float]]
             if t[b] - t[a] >= APART_MIN_S]
 
 
-def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> DriveProfile:
-    """The simplified drive of ``run`` (raises DataError if the stage never moves)."""
+def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03,
+                  coupling: tuple[float, float] | None = None) -> DriveProfile:
+    """The simplified drive of ``run`` (raises DataError if the stage never moves). ``coupling``:
+    the campaign's dFn/dFt and its standard error (:func:`~rigctl.workbench.fn_coupling.
+    campaign_coupling`); None: read from this run."""
     t = run.t_s - run.t_s[0]
     x = run.x_stage_m
     fn = run.fn_N
@@ -444,7 +447,7 @@ def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03) -> Driv
     fn_tol = max(8.0 * noise_sigma(fn), fn_tolerance_fraction * fn_scale, 1e-6)
     xt, xv = _fit_channel(t, x, x_tol)
     # the applied load: without the swing that follows Ft (a coupled frame, cross-talk)
-    fn_applied, fn_per_ft = applied_normal_force(run.ft_N, fn)
+    fn_applied, fn_per_ft = applied_normal_force(run.ft_N, fn, coupling)
     ft, fv = _fit_channel(t, fn_applied, fn_tol)
     # holds: the stage rests exactly
     v = np.diff(xv) / np.diff(xt)

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from rigctl.model import Drive, Simulator, build_model
+from rigctl.workbench import fn_coupling
+from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.drive_profile import drive_profile
 from rigctl.workbench.fn_coupling import applied_normal_force, coupling_ratio
 
@@ -59,3 +61,33 @@ def test_the_drive_takes_the_applied_load_not_the_coupled_swing():
 def test_too_few_slips_give_no_ratio():
     t = np.linspace(0.0, 1.0, 500)
     assert coupling_ratio(10.0 * t, 300.0 + t)[0] == 0.0  # a smooth ramp: no slip steps
+
+
+def _heavy_run(seconds: float, seed: int = 5, kappa: float = 0.1):
+    # a 20 kg slider on a 25 kN/m spring: a slip lasts about 90 ms (180 samples), no one-sample
+    # step of it stands 10 step-noises out
+    model = build_model("paper", params={"m_kg": 20.0, "k0_N_per_m": 2.5e4},
+                        effects=["normal_coupling"], effect_params={"normal_coupling": {"kappa": kappa}})
+    res = Simulator(model, sample_rate_hz=2000.0).run(Drive.constant(300.0, 1e-3, seconds),
+                                                      noise=True, seed=seed, record_elements=False)
+    return res.to_measured()
+
+
+def test_a_slow_slip_is_read_over_longer_steps(monkeypatch):
+    run = _heavy_run(12.0)
+    c, se = coupling_ratio(run.ft_N, run.fn_N)
+    assert c == pytest.approx(0.1, abs=0.015) and abs(c) > 5 * se
+    # over one-sample steps alone the coupling is not significant
+    monkeypatch.setattr(fn_coupling, "LAGS_SAMPLES", (1,))
+    c1, se1 = coupling_ratio(run.ft_N, run.fn_N)
+    assert not abs(c1) > 5 * se1
+
+
+def test_a_run_with_few_slips_takes_the_campaign_coupling():
+    long, short = _heavy_run(12.0, kappa=0.05), _heavy_run(2.6, seed=6, kappa=0.05)
+    c, se = coupling_ratio(short.ft_N, short.fn_N)
+    assert not abs(c) > 5 * se  # alone, its one slip does not tell
+    assert drive_profile(short).fn_per_ft == 0.0
+    ds = prepare_dataset([long, short])
+    assert ds.runs[1].drive.fn_per_ft == pytest.approx(0.05, abs=0.01)
+    assert ds.runs[0].drive.fn_per_ft == ds.runs[1].drive.fn_per_ft
