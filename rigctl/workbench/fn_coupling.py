@@ -34,11 +34,12 @@ import numpy as np
 from rigctl.workbench.signals import FloatArray, noise_sigma
 
 SLIP_STEP_SIGMAS = 10.0
-"""A sample-to-sample Ft step this many noise sigmas of a step is part of a slip."""
+"""An Ft step (over a lag) this many noise sigmas of a one-sample step is part of a slip."""
 MIN_SLIP_STEPS = 5
-"""Fewer slip steps than this give no ratio (0)."""
+"""Fewer slip steps than this times the lag give no ratio at that lag."""
 LAGS_SAMPLES: tuple[int, ...] = (1, 2, 4, 8, 16, 32, 64)
-"""Steps over these lags are tried in turn (a slip spread over up to 64 samples)."""
+"""Steps over each of these lags are read, the most precise ratio kept (a slip spread over up to
+64 samples)."""
 MAX_COUPLING = 0.5
 """|dFn/dFt| beyond this is not a coupling of the loading frame (the effect's own bound)."""
 MIN_T_RATIO = 5.0
