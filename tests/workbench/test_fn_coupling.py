@@ -12,11 +12,12 @@ from rigctl.workbench.drive_profile import drive_profile
 from rigctl.workbench.fn_coupling import applied_normal_force, coupling_ratio
 
 
-def _run(kappa: float, seed: int = 5):
+def _run(kappa: float, seed: int = 5, *, seconds: float = 12.0, v_m_s: float = 2e-5,
+         params: dict[str, float] | None = None):
     effects = ["normal_coupling"] if kappa else []
-    params = {"normal_coupling": {"kappa": kappa}} if kappa else {}
-    model = build_model("paper", effects=effects, effect_params=params)
-    res = Simulator(model, sample_rate_hz=2000.0).run(Drive.constant(300.0, 2e-5, 12.0),
+    effect_params = {"normal_coupling": {"kappa": kappa}} if kappa else {}
+    model = build_model("paper", effects=effects, params=params, effect_params=effect_params)
+    res = Simulator(model, sample_rate_hz=2000.0).run(Drive.constant(300.0, v_m_s, seconds),
                                                       noise=True, seed=seed, record_elements=False)
     return res.to_measured()
 
@@ -63,14 +64,13 @@ def test_too_few_slips_give_no_ratio():
     assert coupling_ratio(10.0 * t, 300.0 + t)[0] == 0.0  # a smooth ramp: no slip steps
 
 
+HEAVY = {"m_kg": 20.0, "k0_N_per_m": 2.5e4}
+"""A 20 kg slider on a 25 kN/m spring, driven at 1 mm/s: a slip lasts about 90 ms (180 samples),
+and no one-sample step of it stands 10 step-noises out."""
+
+
 def _heavy_run(seconds: float, seed: int = 5, kappa: float = 0.1):
-    # a 20 kg slider on a 25 kN/m spring: a slip lasts about 90 ms (180 samples), no one-sample
-    # step of it stands 10 step-noises out
-    model = build_model("paper", params={"m_kg": 20.0, "k0_N_per_m": 2.5e4},
-                        effects=["normal_coupling"], effect_params={"normal_coupling": {"kappa": kappa}})
-    res = Simulator(model, sample_rate_hz=2000.0).run(Drive.constant(300.0, 1e-3, seconds),
-                                                      noise=True, seed=seed, record_elements=False)
-    return res.to_measured()
+    return _run(kappa, seed, seconds=seconds, v_m_s=1e-3, params=HEAVY)
 
 
 def test_a_slow_slip_is_read_over_longer_steps(monkeypatch):
