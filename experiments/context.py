@@ -1,7 +1,9 @@
 """What a running procedure works with: devices, acquisition, limits, and the operator's controls.
 
-The experiment clock is the DAQ's device time (``acq.t_s``): holds and timeouts are measured on it,
-so a procedure behaves the same on the real rig and on an accelerated simulated rig.
+The experiment clock is the DAQ's device time: holds and timeouts are measured on it, so a procedure
+behaves the same on the real rig and on an accelerated simulated rig. "Now" is the device time of the
+present instant (``acq.device_now_s()``), which a paced simulated rig runs ahead of the newest
+recorded sample (``acq.t_s``); waits end when the recorded data reach the time waited for.
 """
 
 from __future__ import annotations
@@ -119,14 +121,19 @@ class RunContext:
         self.checkpoint()
 
     def now_s(self) -> float:
-        """Device time [s]; waits for the first DAQ block if needed."""
+        """Device time of the present instant [s] (``Acquisition.device_now_s``: on a paced simulated
+        rig ahead of the newest recorded sample); waits for the first DAQ block if needed.
+
+        A wait from here (:meth:`wait_device_time`) ends when the recorded data have caught up with
+        it, so a reading after a move is of data from after the move, however far behind the
+        recorder is."""
         deadline = time.monotonic() + 5.0
         while math.isnan(self.acq.t_s):  # NaN before the first block
             self.checkpoint()
             if time.monotonic() > deadline:
                 raise ProcedureError("no DAQ data within 5 s of the start")
             time.sleep(self.poll_s)
-        return self.acq.t_s
+        return self.acq.device_now_s()
 
     def wait_device_time(self, t_end_s: float, host_timeout_s: float) -> None:
         """Wait until device time reaches ``t_end_s`` (checkpoints meanwhile)."""

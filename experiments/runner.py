@@ -262,7 +262,7 @@ class Runner:
             if status != RunStatus.COMPLETED:
                 problems = safe_state(ctx, error or status)
                 self._wait_released(ctx)
-                problems += _unreleased(ctx, acq.t_s, stale)
+                problems += _unreleased(ctx, acq.device_now_s(), stale)
                 if problems:
                     error = f"{error}; safe state incomplete: {'; '.join(problems)}"
                     _log.critical("safe state incomplete: %s", "; ".join(problems))

@@ -123,7 +123,7 @@ def hold_device_time(ctx: RunContext, seconds: float) -> None:
     last = ctx.now_s()
     while remaining > 0:
         ctx.checkpoint()
-        now = ctx.acq.t_s
+        now = ctx.now_s()
         if not ctx.controls.paused:
             remaining -= now - last
         last = now

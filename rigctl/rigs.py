@@ -236,8 +236,10 @@ def open_rig(
                             model=model)
         pacer = Pacer(sim.rig, speed=speed).start() if paced else None
         try:
-            yield OpenRig(RigDevices.from_device_set(sim.devices), rig_limits(config), config, speed, sim,
-                          pacer)
+            # the rig's clock says where "now" is on the recorded axis: positions polled, step
+            # markers and waits are placed there, not at the newest sample the recorder has read
+            devices = RigDevices.from_device_set(sim.devices, device_now_s=sim.rig.daq_time_now_s)
+            yield OpenRig(devices, rig_limits(config), config, speed, sim, pacer)
         finally:
             if pacer is not None:
                 pacer.stop()

@@ -213,6 +213,13 @@ class VirtualRig(SimService):
         """Simulated time of the newest sample."""
         return self._k_done / self.config.sample_rate_hz
 
+    def daq_time_now_s(self) -> float:
+        """The DAQ's device time of the rig's newest sample (NaN while the DAQ does not stream):
+        the present instant on the recorded time axis, which a paced rig runs ahead of the data
+        the recorder has read."""
+        t0 = self.daq_stream_start_s
+        return math.nan if t0 is None else self.t_s - t0
+
     @property
     def k(self) -> int:
         """Index of the newest sample (t = k / rate)."""

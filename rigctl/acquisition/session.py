@@ -4,7 +4,8 @@ Threads (docs/acquisition.md):
 
 * **daq** reads blocks from the DAQ (sample times from its counter), maps Fx/Fy/Fz and the analog
   channels to ft_N, fn_N, d1_m, d2_m with the configured ChannelMap, polls both stage positions once
-  per block and interpolates them linearly onto the block's samples, feeds the normal-force guard,
+  per block, places each poll at the device time it was made (:meth:`Acquisition.device_now_s`)
+  and interpolates the polls linearly onto the block's samples, feeds the normal-force guard,
   updates the host-to-device clock map and the recent history, publishes the block to subscribers,
   and queues it for the writer.
 * **camera** reads frames, places each on the device time axis through the clock map and queues it.
@@ -26,6 +27,7 @@ import queue
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,6 +55,8 @@ dropped and counted: a camera keeps its own buffer meanwhile (a real one about 2
 _IN_RANGE_HOLD_S = 1.0
 """A probe is back in range after this long without an over-range sample."""
 """Most consecutive frames written in one call."""
+_POLLS_KEPT = 64
+"""Stage-position polls kept to interpolate a block's samples between (one per block)."""
 _HISTORY_CHANNELS = ("ft_N", "fn_N", "d1_m", "d2_m", "x_stage_m", "z_stage_m")
 
 
@@ -66,14 +70,21 @@ class RigDevices:
     camera: Camera | None = None
     d1: DisplacementProbe | None = None
     d2: DisplacementProbe | None = None
+    device_now_s: Callable[[], float] | None = None
+    """The DAQ's device time of the present instant, where the rig can tell (NaN: not yet): a
+    simulated rig's clock, which a paced rig runs up to ``Pacer.max_lag_s`` ahead of the recorded
+    data. None (the hardware): the newest recorded sample's time, which the DAQ delivers within its
+    transport delay (milliseconds)."""
 
     @classmethod
-    def from_device_set(cls, devices: Any) -> RigDevices:
+    def from_device_set(
+        cls, devices: Any, device_now_s: Callable[[], float] | None = None
+    ) -> RigDevices:
         """From any object with the six device attributes (e.g. sim_devices' DeviceSet)."""
         return cls(
             devices.tangential_stage, devices.normal_stage, devices.daq,
             getattr(devices, "camera", None), getattr(devices, "d1", None),
-            getattr(devices, "d2", None),
+            getattr(devices, "d2", None), device_now_s,
         )
 
 
@@ -155,7 +166,7 @@ class Acquisition:
         self._hist_max = n_hist
         self._t_s = float("nan")
         self._latest: dict[str, float] = {}
-        self._last_positions: tuple[float, float, float] | None = None
+        self._polls: deque[tuple[float, float, float]] = deque(maxlen=_POLLS_KEPT)
         self._last_dropped_total = 0
         self._over_range: dict[str, bool] = {}
         self._in_range_run: dict[str, int] = {}
@@ -249,6 +260,21 @@ class Acquisition:
         """Device time of the latest sample [s] (NaN before the first block)."""
         return self._t_s
 
+    def device_now_s(self) -> float:
+        """Device time of the present instant [s]: what the devices are doing now (a stage that just
+        stopped, a step that starts) happens at this time on the recorded axis.
+
+        The newest sample's time, or later where the rig says its clock is ahead of the recorded
+        data (:attr:`RigDevices.device_now_s`: a simulated rig paced ahead of the recorder). NaN
+        before the first block."""
+        t = self._t_s
+        clock = self.devices.device_now_s
+        if clock is not None:
+            ahead = float(clock())
+            if ahead > t:  # False for NaN either side
+                return ahead
+        return t
+
     def latest(self) -> dict[str, float]:
         with self._lock:
             return dict(self._latest)
@@ -282,8 +308,10 @@ class Acquisition:
         return self._queue.qsize()
 
     def mark(self, name: str, message: str = "") -> None:
-        """A step marker at the current device time (written in order with the data)."""
-        t = self._t_s if np.isfinite(self._t_s) else 0.0
+        """A step marker at the present device time (:meth:`device_now_s`; written in order with
+        the data)."""
+        now = self.device_now_s()
+        t = now if np.isfinite(now) else 0.0
         self._put(("event", t, name, message), samples=0, frames=0)
         self.stats.events += 1
 
@@ -317,6 +345,26 @@ class Acquisition:
         return (self._position("tangential", self.devices.tangential_stage),
                 self._position("normal", self.devices.normal_stage))
 
+    def _positions_at(self, t: np.ndarray, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Both stage positions at the block's sample times ``t`` (last ``t1``).
+
+        The positions are polled now. A poll is placed at the device time it was made (the mean
+        of :meth:`device_now_s` before and after it, never before the block's last sample), and
+        each sample gets the line between the polls around it (the first poll's value before it).
+        On a paced simulated rig the rig runs ahead of the recorded data, so a poll placed at the
+        block's last sample would put each position up to the pacer's lag too early."""
+        before = self.device_now_s()
+        x1, z1 = self._positions()
+        after = self.device_now_s()
+        t_poll = max(0.5 * (before + after), t1) if after == after and before == before else t1
+        if self._polls and t_poll <= self._polls[-1][0]:
+            self._polls.pop()  # polls stay in time order (the newest wins a tie)
+        self._polls.append((t_poll, x1, z1))
+        if len(self._polls) == 1:
+            return np.full(t.shape, x1), np.full(t.shape, z1)
+        tp, xp, zp = (np.array(c) for c in zip(*self._polls, strict=True))
+        return np.interp(t, tp, xp), np.interp(t, tp, zp)
+
     def _position(self, key: str, stage: Any) -> float:
         now = time.monotonic()
         if now < self._stage_retry_at.get(key, 0.0):
@@ -336,18 +384,8 @@ class Acquisition:
     def _handle_block(self, block: DaqBlock) -> None:
         cmap = self.devices.daq.channel_map
         t = block.t_s
-        x1, z1 = self._positions()
         t1 = float(t[-1])
-        if self._last_positions is None:
-            xs = np.full(t.shape, x1)
-            zs = np.full(t.shape, z1)
-        else:
-            t0, x0, z0 = self._last_positions
-            span = max(t1 - t0, 1e-12)
-            w = np.clip((t - t0) / span, 0.0, 1.0)
-            xs = x0 + (x1 - x0) * w
-            zs = z0 + (z1 - z0) * w
-        self._last_positions = (t1, x1, z1)
+        xs, zs = self._positions_at(t, t1)
         columns = {
             "t_s": t,
             "ft_N": cmap.ft_N(block),

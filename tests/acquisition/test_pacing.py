@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
+
 from rigctl.acquisition import Acquisition
 from rigctl.config.loader import default_config
 from rigctl.rigs import STALL_S, Pacer, open_rig
@@ -83,3 +85,47 @@ def test_a_pinned_manual_clock_maps_rig_time_to_when_the_rig_reached_it():
     assert clock.host_ns_at(3.0) == 30_000
     assert clock.host_ns_at(9.0) == 30_000  # beyond the last pin: reached no later than that
     assert clock.host_ns_at(0.5) == 10_000 - 500_000_000
+
+
+def test_a_paced_rig_s_stage_positions_and_now_are_placed_when_they_happened():
+    """The paced rig runs up to ``max_lag_s`` ahead of the recorded data; stage positions polled
+    and "now" (step markers, waits) belong to the rig's now (``Acquisition.device_now_s``), not to
+    the newest recorded sample, which is up to that lag earlier: at 100 um/s a position placed
+    there would be up to ~30 um off, and a marker set when a move ends could fall before it."""
+    with open_rig("sim", default_config(), speed=math.inf) as rig:
+        vr, stage = rig.sim.rig, rig.devices.tangential_stage
+        acq = Acquisition(rig.devices, None, record_camera=False)
+        sub = acq.publisher.subscribe("daq", maxlen=100_000)
+        assert rig.pacer is not None
+        rig.pacer.follow(lambda: acq.t_s)
+        acq.start()
+        try:
+            acq.wait_until(0.5, 10.0)
+            stage.enable()
+            stage.move_relative(300e-6, 100e-6)
+            while stage.status().moving:
+                time.sleep(0.002)
+            t_mark = acq.device_now_s()
+            lead = t_mark - acq.t_s  # how far the rig was ahead of the recorder when it stopped
+            acq.wait_until(t_mark + 0.5, 10.0)
+            start = vr.daq_stream_start_s
+            assert start is not None
+        finally:
+            acq.stop()
+        blocks = sub.drain()
+        t = np.concatenate([b["t_s"] for b in blocks])
+        x = np.concatenate([b["x_stage_m"] for b in blocks])
+        truth = vr.samples(vr.k - round((vr.t_s - start - t[0]) * vr.config.sample_rate_hz), vr.k + 1)
+    x_true = np.interp(t + start, truth.t_s, truth.x_stage_m)
+    # the cruise at 100 um/s, a block (one poll, up to the pacer's lag) away from either corner:
+    # there a line between two polls is the stage's path
+    w = 0.35
+    ahead, behind = (np.interp(t + start + d, truth.t_s, truth.x_stage_m) for d in (w, -w))
+    cruise = np.abs((ahead - behind) / (2 * w) - 100e-6) < 1e-7
+    assert cruise.sum() > 1000  # ~2 s of the move's 3 s
+    off = x[cruise] - x_true[cruise]  # 0: the stage driver's zero is the rig's
+    assert np.max(np.abs(off)) < 0.2e-6, f"positions off by up to {np.max(np.abs(off)) * 1e6:.1f} um"
+    # the marker set once the stage said the move was done is after the move's recorded end (the
+    # newest recorded sample then was up to the pacer's lag before it)
+    moving = np.abs(np.gradient(x_true, t)) > 1e-6
+    assert t[moving][-1] <= t_mark, (t[moving][-1], t_mark, lead)

@@ -54,7 +54,7 @@ def test_a_file_protocol_runs_on_the_simulated_rig_and_is_recorded(tmp_path):
     for k, force in ((3, 200.0), (6, 300.0), (9, 400.0)):
         during = (t > marks[f"step {k}"]) & (t < marks[f"step {k + 1}"])
         assert np.median(fn[during]) == pytest.approx(force, abs=5.0)
-        assert x[during][-1] - x[during][0] == pytest.approx(60e-6, abs=2e-6)
+        assert x[during][-1] - x[during][0] == pytest.approx(60e-6, abs=0.5e-6)
     assert abs(fn[-1]) < 1.0 and x[-1] == pytest.approx(x[0], abs=1e-6)  # released, returned
 
 
