@@ -120,7 +120,7 @@ def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
     return out
 
 
-def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
+def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str, Any]:
     rng = np.random.default_rng(seed * 7919 + i)
     n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
     hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
@@ -139,7 +139,8 @@ def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
         raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
     t0 = time.perf_counter()
     ds = prepare_dataset(runs)
-    diag = diagnose(ds, ModelChoice("paper"), auto=True, workers=workers)
+    say = (lambda msg: print(f"[case {i}] {msg}", file=sys.stderr, flush=True)) if verbose else None
+    diag = diagnose(ds, ModelChoice("paper"), auto=True, workers=workers, progress=say)
     wall = time.perf_counter() - t0
     try:  # what the generating model itself scores: the floor a fit can be judged against
         truth_err = float(evaluate(ds, truth).score.error)
@@ -199,10 +200,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--jsonl", default="")
+    ap.add_argument("--verbose", action="store_true",
+                    help="the diagnosis's progress (each candidate's fit, each step) on stderr")
     args = ap.parse_args(argv)
     results = []
     for i in range(args.first, args.first + args.cases):
-        res = run_case(i, args.seed, args.workers)
+        res = run_case(i, args.seed, args.workers, args.verbose)
         results.append(res)
         line = json.dumps(res)
         print(line, flush=True)
