@@ -160,7 +160,9 @@ def residual_map(dataset: Dataset, comps: list[RunComparison]) -> ResidualMap:
         if ok.sum() >= 2:
             m = float(np.mean(z[ok]))
             sd = float(np.std(z[ok], ddof=1))
-            bias[name] = (m, m / (sd / math.sqrt(ok.sum())) if sd > 0 else math.inf * np.sign(m))
+            # all residuals equal: no scatter to judge them by; a bias of 0 is none at all
+            flat = math.copysign(math.inf, m) if m != 0 else 0.0
+            bias[name] = (m, m / (sd / math.sqrt(ok.sum())) if sd > 0 else flat)
         for cov in COVARIATES:
             res = _trend(z, cols[cov])
             if res is None:

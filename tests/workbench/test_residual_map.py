@@ -70,3 +70,15 @@ def test_a_ratio_many_times_off_is_said_as_a_factor():
     assert _amount("k_stick_N_per_m", np.full(5, -np.log(10.0))) == "a factor of 10"
     assert _amount("k_stick_N_per_m", np.full(5, np.log(1.5))) == "50 %"
     assert _amount("k_stick_N_per_m", np.full(5, np.log(0.6))) == "40 %"
+
+
+def test_a_feature_matched_exactly_has_no_bias(recwarn):
+    """Residuals all exactly 0 (a feature the model reproduces to the bit, or one only a constant
+    fills) have no scatter to judge a bias by: none is reported, and no NaN is made."""
+    ds, comps = _case(np.zeros(30), np.zeros(30))
+    comps[0].residual["drop_N"] = np.zeros(30)
+    comps[0].residual["slip_m"] = np.full(30, 0.3)
+    rmap = residual_map(ds, comps)
+    assert rmap.bias["drop_N"] == (0.0, 0.0)
+    assert rmap.bias["slip_m"][1] == np.inf
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
