@@ -35,6 +35,8 @@ from rigctl.workbench.identify import (
     with_uncertainties,
 )
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.pairs import Pair, best_pair, wants_pairs
+from rigctl.workbench.pairs import firsts as pair_firsts
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 from rigctl.workbench.ranking import (
     MIN_ERROR_REDUCTION,
@@ -351,10 +353,12 @@ def diagnose(
     diag.steps.append(DiagnosisStep(0, model.choice.label(), None, model.error, None))
     restarts = 0
     carried: dict[str, FitResult] = {}
+    tried: dict[str, tuple[FitResult, float]] = {}  # this step's candidate fits, refits included
     while True:
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
                         progress=progress, timeout_s=timeout_s, in_process=in_process,
                         carried=carried)
+        _remember(tried, rnd.fits, model.error)
         better = better_model(dataset, model, rnd.fits) if restarts < MAX_BASE_RESTARTS else None
         if better is not None:
             restarts += 1
@@ -370,6 +374,28 @@ def diagnose(
         carried = {}
         diag.rounds.append(rnd)
         kind = rnd.verdict.kind
+        counts = {"workers": workers, "scheduler": scheduler, "timeout_s": timeout_s,
+                  "in_process": in_process}
+        if (auto and kind is VerdictKind.NONE and len(diag.steps) < MAX_AUTO_STEPS
+                and wants_pairs(model, any(s.significant for s in rnd.ranking))):
+            pair = _try_pairs(dataset, model, tried, say, **counts)
+            if pair is not None:
+                first_score = next(s for s in rnd.ranking if s.effect == pair.first)
+                diag.steps.append(DiagnosisStep(
+                    len(diag.steps), pair.first_fit.choice.label(), pair.first, pair.first_fit.error,
+                    first_score.delta_bic, f"alone not significant; added with {pair.second}"))
+                note = (f"together with {pair.first}: {model.error:.3g} -> {pair.fit.error:.3g} "
+                        "(neither alone is significant)")
+                model, note = _with_element_count(dataset, refine(dataset, pair.fit), note, say,
+                                                  **counts)
+                diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), pair.second,
+                                                model.error, pair.score.delta_bic, note))
+                pool = [c for c in pool if c not in (pair.first, pair.second)]
+                tried = {}
+                if not pool:
+                    diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
+                    break
+                continue
         if not auto or kind is VerdictKind.NONE or len(diag.steps) > MAX_AUTO_STEPS:
             break
         best = rnd.verdict.verdict if kind is VerdictKind.EFFECT else rnd.verdict.candidates[0]
@@ -377,24 +403,59 @@ def diagnose(
             f"indistinguishable from {', '.join(rnd.verdict.candidates[1:])}"
         best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
-        model = refine(dataset, rnd.fits[best])
-        counted = best_element_count(dataset, model, say, workers=workers, scheduler=scheduler,
-                                     timeout_s=timeout_s, in_process=in_process)
-        if counted is not model:
-            n_el = counted.choice.build().n_elements
-            say(f"N = {n_el} elements: error {model.error:.3g} -> {counted.error:.3g}")
-            note = "; ".join(filter(None, [note, f"N = {n_el} elements (error {model.error:.3g} "
-                                                 f"at N = {model.choice.build().n_elements})"]))
-            model = refine(dataset, counted)
+        model, note = _with_element_count(dataset, refine(dataset, rnd.fits[best]), note, say,
+                                          **counts)
         diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), best, model.error,
                                best_score.delta_bic, note))
         pool = [c for c in pool if c != best]
+        tried = {}
         if not pool:
             diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
             break
     if auto and len(diag.steps) > 1:
         _keep_effects_that_earn_their_place(dataset, diag, say)
     return diag
+
+
+def _with_element_count(dataset: Dataset, model: FitResult, note: str, say: Progress,
+                        **run: Any) -> tuple[FitResult, str]:
+    """``model`` refitted at the element count that fits best where that matters
+    (:func:`~rigctl.workbench.element_count.best_element_count`), with the step's note."""
+    counted = best_element_count(dataset, model, say, **run)
+    if counted is model:
+        return model, note
+    n_el = counted.choice.build().n_elements
+    say(f"N = {n_el} elements: error {model.error:.3g} -> {counted.error:.3g}")
+    note = "; ".join(filter(None, [note, f"N = {n_el} elements (error {model.error:.3g} "
+                                         f"at N = {model.choice.build().n_elements})"]))
+    return refine(dataset, counted), note
+
+
+def _remember(tried: dict[str, tuple[FitResult, float]], fits: Mapping[str, FitResult],
+              e_model: float) -> None:
+    """Keep each candidate's fit that removed the largest fraction of its model's error."""
+    for name, res in fits.items():
+        old = tried.get(name)
+        if old is None or (e_model - res.error) / e_model > (old[1] - old[0].error) / old[1]:
+            tried[name] = (res, e_model)
+
+
+def _try_pairs(dataset: Dataset, model: FitResult, tried: Mapping[str, tuple[FitResult, float]],
+               say: Progress, **run: Any) -> Pair | None:
+    """The best significant pair of effects (:mod:`rigctl.workbench.pairs`) of this step's
+    candidate fits, or None."""
+    names = pair_firsts(tried)
+    if not names or len(tried) < 2:
+        return None
+    say(f"no single effect is significant while the error {model.error:.3g} stays above the "
+        f"scatter; fitting every other candidate on {' and on '.join(names)}")
+    pair = best_pair(dataset, model, tried, progress=say, **run)
+    if pair is None:
+        say("no pair is significant either")
+    else:
+        say(f"adding {pair.first} and {pair.second} together: error {model.error:.3g} -> "
+            f"{pair.fit.error:.3g} ({pair.first} alone {pair.first_fit.error:.3g})")
+    return pair
 
 
 def _rig_fn(dataset: Dataset) -> float | None:

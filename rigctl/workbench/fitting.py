@@ -64,6 +64,8 @@ GN_SCAN_ITERATIONS = 2  # Gauss-Newton steps of the base parameters at each prom
 SCAN_FACTORS: tuple[float, ...] = (0.1, 0.3, 1.0, 3.0)  # x the effect's typical deviation from off
 SIGNED_SCAN_FACTORS: tuple[float, ...] = (-1.0, -0.2, 0.2, 1.0, 3.0)  # the same, both signs allowed
 MAX_SCAN_POINTS = 25  # scan points of an effect with several parameters (a 5 x 5 grid)
+SWITCHED_OFF = "the effect does not improve the fit; reported switched off"
+"""The message of a candidate fit that ended no better than the base model (the base reported)."""
 
 
 def identify_model(
@@ -481,6 +483,6 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
         result = FitResult(
             choice=off_choice, error=base.error, feature_error=dict(base.feature_error),
             free=result.free, n_evaluations=result.n_evaluations,
-            message="the effect does not improve the fit; reported switched off",
+            message=SWITCHED_OFF,
         )
     return result

@@ -1,0 +1,107 @@
+"""Two effects at once, where no single one is significant but the misfit stays structured.
+
+``diagnose --auto`` adds one effect per round: the candidate that alone improves the model most.
+Two effects that act together can each gain little alone from the model's fit and much together.
+On a held-out campaign with load-dependent friction and a Stribeck slip law, from a refitted base
+at E = 16.2, neither alone was significant (Stribeck 16.2, rate-and-state 15.5), while the
+generating model scores 0.83; the Stribeck law fitted on top of the load-dependent friction's own
+fit went from 24.3 to 4.5 in one candidate fit.
+
+So when a round finds no significant candidate while the error stays well above the scatter
+(E^2 > :data:`~rigctl.workbench.ranking.STRUCTURED_E2`), the :data:`PAIR_FIRSTS` candidates that
+removed the largest fraction of their model's error alone are each continued with every other
+candidate added (a :class:`~rigctl.workbench.fitting.CandidateTask` on the first one's fit). Their
+fits may come from before ``diagnose`` refitted the model from a candidate's point: in the case
+above load-dependent friction took the first fit of the base from 49.5 to 24.3, and nothing from
+the refitted base at 16.2. The second effect may show nothing alone (Stribeck: 16.2 -> 16.2); the
+first must have shown something, and which of the two is fitted first decides where the pair's fit
+ends (24.3 -> 4.5 in one order, 47.4 -> 38.8 in the other). The best pair is kept when it is
+significant against the model with both effects' parameters counted
+(:func:`~rigctl.workbench.ranking.score_candidate`); each of its effects must then earn its place
+in the final model like any other (``diagnose``'s pruning).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from rigctl.workbench.dataset import Dataset
+from rigctl.workbench.fitting import SWITCHED_OFF, CandidateTask, fit_candidate
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
+from rigctl.workbench.ranking import STRUCTURED_E2, CandidateScore, score_candidate
+
+PAIR_FIRSTS = 2
+"""Candidates continued with each other one (those that removed most of their model's error alone):
+with a dozen candidates, 22 pair fits, about two rounds' work."""
+
+
+@dataclass
+class Pair:
+    """Two effects fitted together: ``first`` alone (its own candidate fit), then ``second`` added."""
+
+    first: str
+    second: str
+    first_fit: FitResult
+    fit: FitResult
+    score: CandidateScore
+
+
+def wants_pairs(model: FitResult, significant: bool) -> bool:
+    """Pairs are tried where no single candidate is significant and the misfit is structured."""
+    return not significant and model.error**2 > STRUCTURED_E2
+
+
+Tried = Mapping[str, tuple[FitResult, float]]
+"""Candidate fits by effect, each with the error of the model it was fitted on."""
+
+
+def firsts(tried: Tried, n: int = PAIR_FIRSTS) -> list[str]:
+    """The ``n`` candidates that removed the largest fraction of their model's error alone, of
+    those whose fit moved: a fit that ended at its model's error (its effect switched off, or
+    left where it started) shows nothing to continue from."""
+    ok = [(-(e0 - res.error) / e0, name) for name, (res, e0) in tried.items()
+          if name in res.choice.effects and math.isfinite(res.error) and res.error < e0
+          and not res.misses_most_slips and not res.message.startswith(SWITCHED_OFF)]
+    return [name for _, name in sorted(ok)[:n]]
+
+
+def best_pair(
+    dataset: Dataset, model: FitResult, tried: Tried, *,
+    workers: int | None, scheduler: Any = None, progress: Callable[[str], None] | None = None,
+    timeout_s: float = DEFAULT_TIMEOUT_S, in_process: bool = False,
+    n: int = PAIR_FIRSTS,
+) -> Pair | None:
+    """The best significant pair of the candidates ``tried`` on this model (module docstring), or
+    None. ``tried`` may hold fits on an earlier fit of the same model (before ``diagnose`` refitted
+    it from a candidate's point): a first effect's fit is a start, whatever model it began from."""
+    fits = {name: res for name, (res, _e0) in tried.items()}
+    order = [(a, b) for a in firsts(tried, n) for b in fits if b != a]
+    if not order:
+        return None
+    tasks = [CandidateTask(dataset, fits[a], b) for a, b in order]
+
+    def done(i: int, res: FitResult | TaskFailed) -> None:
+        if not progress:
+            return
+        a, b = order[i]
+        if isinstance(res, TaskFailed):
+            progress(f"  {a} + {b}: fit failed: {res.message.splitlines()[0]}")
+        else:
+            progress(f"  fitted {a} + {b}: error {res.error:.3g} (base {model.error:.3g}, "
+                     f"{a} alone {fits[a].error:.3g}; {res.elapsed_s:.1f} s)")
+
+    outcomes = run_tasks(fit_candidate, tasks, workers=workers, scheduler=scheduler,
+                         on_done=done, timeout_s=timeout_s, in_process=in_process)
+    best: Pair | None = None
+    for (a, b), res in zip(order, outcomes, strict=True):
+        if isinstance(res, TaskFailed) or res.misses_most_slips or b not in res.choice.effects:
+            continue
+        score = score_candidate(f"{a} + {b}", model.error, res.error, dataset.n_events,
+                                res.n_params - model.n_params)
+        if score.significant and (best is None or res.error < best.fit.error):
+            best = Pair(a, b, fits[a], res, score)
+    return best

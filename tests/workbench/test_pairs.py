@@ -1,0 +1,87 @@
+"""Two effects fitted together where neither alone is significant (rigctl.workbench.pairs).
+
+The candidate fits themselves are stood in for by a table of the errors each ordered pair's fit
+ends at: what is tested is which pairs are fitted, from which fits, and which one is taken."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pytest
+
+from rigctl.workbench import pairs
+from rigctl.workbench.fitting import SWITCHED_OFF
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+
+BASE_FREE = ("mu_s", "mu_k", "k0_N_per_m", "kts_N_per_m")
+
+
+@dataclass
+class _Events:
+    n_events: int = 126
+
+
+def _fit(effects: tuple[str, ...], error: float, n_extra: int = 2) -> FitResult:
+    free = BASE_FREE + tuple(f"{e}.p{j}" for e in effects for j in range(n_extra))
+    return FitResult(ModelChoice("paper", effects), error, {}, free)
+
+
+MODEL = _fit((), 16.2)
+ALONE = {"rate_state": 15.5, "load_dependent_friction": 15.9, "stribeck": 16.2, "wear": 16.2,
+         "presliding": 16.3}
+TOGETHER = {("load_dependent_friction", "stribeck"): 1.1, ("rate_state", "stribeck"): 9.0}
+"""Where each ordered pair's fit ends (the first's own fit continued with the second); others 15."""
+
+
+@pytest.fixture
+def fits() -> dict[str, tuple[FitResult, float]]:
+    return {name: (_fit((name,), e), MODEL.error) for name, e in ALONE.items()}
+
+
+@pytest.fixture
+def fitted(monkeypatch) -> list[tuple[str, str]]:
+    calls: list[tuple[str, str]] = []
+
+    def fake(task):
+        first = task.base.choice.effects[-1]
+        calls.append((first, task.effect))
+        return _fit((first, task.effect), TOGETHER.get((first, task.effect), 15.0))
+
+    monkeypatch.setattr(pairs, "fit_candidate", fake)
+    return calls
+
+
+def test_the_firsts_removed_most_of_their_model_s_error_alone(fits) -> None:
+    assert pairs.firsts(fits) == ["rate_state", "load_dependent_friction"]
+    # a fit on the model before it was refitted counts by what it removed from that model
+    fits["wear"] = (_fit(("wear",), 24.3), 49.5)
+    assert pairs.firsts(fits) == ["wear", "rate_state"]
+    fits["rate_state"][0].misses_most_slips = True  # a trap, not a fit
+    fits["presliding"] = (_fit(("presliding",), 12.0), MODEL.error)
+    fits["presliding"][0].message = SWITCHED_OFF  # nothing better than its base: not a start
+    assert pairs.firsts(fits) == ["wear", "load_dependent_friction"]
+
+
+def test_pairs_are_fitted_in_both_orders_and_the_best_significant_one_is_taken(fits, fitted) -> None:
+    pair = pairs.best_pair(_Events(), MODEL, fits, workers=1, in_process=True)  # type: ignore[arg-type]
+    # the two best alone, each continued with every other candidate once
+    assert sorted(fitted) == sorted([(a, b) for a in ("rate_state", "load_dependent_friction")
+                                     for b in ALONE if b != a])
+    assert pair is not None
+    assert (pair.first, pair.second) == ("load_dependent_friction", "stribeck")
+    assert pair.fit.error == 1.1 and pair.first_fit is fits["load_dependent_friction"][0]
+    assert pair.score.significant and pair.score.n_params == 4  # both effects' parameters counted
+
+
+def test_no_pair_is_taken_where_none_is_significant(fits, fitted, monkeypatch) -> None:
+    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "stribeck"), 15.2)  # 6 % off 16.2
+    monkeypatch.setitem(TOGETHER, ("rate_state", "stribeck"), 15.8)
+    assert pairs.best_pair(_Events(), MODEL, fits, workers=1, in_process=True) is None  # type: ignore[arg-type]
+    assert len(fitted) == 8
+
+
+def test_pairs_are_wanted_only_for_a_structured_misfit_no_single_effect_explains() -> None:
+    assert pairs.wants_pairs(MODEL, significant=False)
+    assert not pairs.wants_pairs(MODEL, significant=True)
+    assert not pairs.wants_pairs(_fit((), 1.6), significant=False)  # E^2 2.6: the scatter's
