@@ -35,7 +35,7 @@ from rigctl.workbench.identify import (
     with_uncertainties,
 )
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
-from rigctl.workbench.pairs import Pair, best_pair, wants_pairs
+from rigctl.workbench.pairs import Pair, beats_single, best_pair, wants_pairs
 from rigctl.workbench.pairs import firsts as pair_firsts
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 from rigctl.workbench.ranking import (
@@ -376,16 +376,24 @@ def diagnose(
         kind = rnd.verdict.kind
         counts = {"workers": workers, "scheduler": scheduler, "timeout_s": timeout_s,
                   "in_process": in_process}
-        if (auto and kind is VerdictKind.NONE and len(diag.steps) < MAX_AUTO_STEPS
-                and wants_pairs(model, any(s.significant for s in rnd.ranking))):
+        single = None if kind is VerdictKind.NONE else next(
+            s for s in rnd.ranking if s.effect == (rnd.verdict.verdict if kind is VerdictKind.EFFECT
+                                                   else rnd.verdict.candidates[0]))
+        if auto and len(diag.steps) < MAX_AUTO_STEPS and wants_pairs(model, single):
             pair = _try_pairs(dataset, model, tried, say, **counts)
+            if single is not None and pair is not None and not beats_single(
+                    pair, single, rnd.fits.get(single.effect), dataset.n_events):
+                say(f"{single.effect} alone ({single.error:.3g}) is as good as the pair with its "
+                    "fewer parameters; adding it alone")
+                pair = None
             if pair is not None:
                 first_score = next(s for s in rnd.ranking if s.effect == pair.first)
                 diag.steps.append(DiagnosisStep(
                     len(diag.steps), pair.first_fit.choice.label(), pair.first, pair.first_fit.error,
-                    first_score.delta_bic, f"alone not significant; added with {pair.second}"))
+                    first_score.delta_bic, f"added with {pair.second}: alone {pair.first_fit.error:.3g}, "
+                                           "it does not halve the error"))
                 note = (f"together with {pair.first}: {model.error:.3g} -> {pair.fit.error:.3g} "
-                        "(neither alone is significant)")
+                        "(neither alone halves it)")
                 model, note = _with_element_count(dataset, refine(dataset, pair.fit), note, say,
                                                   **counts)
                 diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), pair.second,
@@ -447,7 +455,7 @@ def _try_pairs(dataset: Dataset, model: FitResult, tried: Mapping[str, tuple[Fit
     names = pair_firsts(tried)
     if not names or len(tried) < 2:
         return None
-    say(f"no single effect is significant while the error {model.error:.3g} stays above the "
+    say(f"no single effect halves the error {model.error:.3g} while it stays above the "
         f"scatter; fitting every other candidate on {' and on '.join(names)}")
     pair = best_pair(dataset, model, tried, progress=say, **run)
     if pair is None:

@@ -7,8 +7,10 @@ at E = 16.2, neither alone was significant (Stribeck 16.2, rate-and-state 15.5),
 generating model scores 0.83; the Stribeck law fitted on top of the load-dependent friction's own
 fit went from 24.3 to 4.5 in one candidate fit.
 
-So when a round finds no significant candidate while the error stays well above the scatter
-(E^2 > :data:`~rigctl.workbench.ranking.STRUCTURED_E2`), the :data:`PAIR_FIRSTS` candidates that
+So where the misfit stays structured (E^2 > :data:`~rigctl.workbench.ranking.STRUCTURED_E2`) and no
+single candidate of the round halves it (none is significant, or the one ``--auto`` would add does
+not earn its place by :func:`~rigctl.workbench.ranking.earns_its_place`), the
+:data:`PAIR_FIRSTS` candidates that
 removed the largest fraction of their model's error alone are each continued with every other
 candidate added (a :class:`~rigctl.workbench.fitting.CandidateTask` on the first one's fit). Their
 fits may come from before ``diagnose`` refitted the model from a candidate's point: in the case
@@ -17,8 +19,9 @@ the refitted base at 16.2. The second effect may show nothing alone (Stribeck: 1
 first must have shown something, and which of the two is fitted first decides where the pair's fit
 ends (24.3 -> 4.5 in one order, 47.4 -> 38.8 in the other). The best pair is kept when it is
 significant against the model with both effects' parameters counted
-(:func:`~rigctl.workbench.ranking.score_candidate`); each of its effects must then earn its place
-in the final model like any other (``diagnose``'s pruning).
+(:func:`~rigctl.workbench.ranking.score_candidate`), and against the single effect ``--auto`` would
+otherwise add (:func:`beats_single`); each of its effects must then earn its place in the final
+model like any other (``diagnose``'s pruning).
 """
 
 from __future__ import annotations
@@ -32,7 +35,12 @@ from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.fitting import SWITCHED_OFF, CandidateTask, fit_candidate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
-from rigctl.workbench.ranking import STRUCTURED_E2, CandidateScore, score_candidate
+from rigctl.workbench.ranking import (
+    STRUCTURED_E2,
+    CandidateScore,
+    earns_its_place,
+    score_candidate,
+)
 
 PAIR_FIRSTS = 2
 """Candidates continued with each other one (those that removed most of their model's error alone):
@@ -50,9 +58,23 @@ class Pair:
     score: CandidateScore
 
 
-def wants_pairs(model: FitResult, significant: bool) -> bool:
-    """Pairs are tried where no single candidate is significant and the misfit is structured."""
-    return not significant and model.error**2 > STRUCTURED_E2
+def wants_pairs(model: FitResult, best: CandidateScore | None) -> bool:
+    """Pairs are tried where the misfit is structured and no single candidate (``best``: the one
+    ``--auto`` would add, None if none is significant) halves it
+    (:func:`~rigctl.workbench.ranking.earns_its_place`)."""
+    if not model.error**2 > STRUCTURED_E2:
+        return False
+    return best is None or not earns_its_place(best.error, model.error)
+
+
+def beats_single(pair: Pair, single: CandidateScore | None, single_fit: FitResult | None,
+                 n_events: int) -> bool:
+    """The pair is taken over the single effect ``--auto`` would add when it is significant
+    against that one too, its extra parameters counted (None: no single is significant)."""
+    if single is None or single_fit is None:
+        return True
+    return score_candidate(pair.score.effect, single.error, pair.fit.error, n_events,
+                           pair.fit.n_params - single_fit.n_params).significant
 
 
 Tried = Mapping[str, tuple[FitResult, float]]

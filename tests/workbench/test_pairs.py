@@ -13,6 +13,7 @@ from rigctl.workbench import pairs
 from rigctl.workbench.fitting import SWITCHED_OFF
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import score_candidate
 
 BASE_FREE = ("mu_s", "mu_k", "k0_N_per_m", "kts_N_per_m")
 
@@ -81,7 +82,20 @@ def test_no_pair_is_taken_where_none_is_significant(fits, fitted, monkeypatch) -
     assert len(fitted) == 8
 
 
-def test_pairs_are_wanted_only_for_a_structured_misfit_no_single_effect_explains() -> None:
-    assert pairs.wants_pairs(MODEL, significant=False)
-    assert not pairs.wants_pairs(MODEL, significant=True)
-    assert not pairs.wants_pairs(_fit((), 1.6), significant=False)  # E^2 2.6: the scatter's
+def test_pairs_are_wanted_where_the_misfit_is_structured_and_no_single_effect_halves_it() -> None:
+    assert pairs.wants_pairs(MODEL, None)  # no significant single candidate
+    assert pairs.wants_pairs(MODEL, score_candidate("interface_damping", 16.2, 13.4, 126, 2))
+    assert not pairs.wants_pairs(MODEL, score_candidate("interface_damping", 16.2, 7.0, 126, 2))
+    assert not pairs.wants_pairs(_fit((), 1.6), None)  # E^2 2.6: the scatter's
+
+
+def test_a_pair_is_taken_over_a_single_effect_only_where_it_beats_that_one_too(fits, fitted) -> None:
+    pair = pairs.best_pair(_Events(), MODEL, fits, workers=1, in_process=True)  # type: ignore[arg-type]
+    assert pair is not None
+    single_fit = _fit(("interface_damping",), 13.4)
+    single = score_candidate("interface_damping", MODEL.error, 13.4, 126, 2)
+    assert pairs.beats_single(pair, single, single_fit, 126)  # 1.1 against 13.4
+    close = _fit(("interface_damping",), 1.12)
+    assert not pairs.beats_single(pair, score_candidate("interface_damping", MODEL.error, 1.12, 126, 2),
+                                  close, 126)  # two more parameters for 2 %
+    assert pairs.beats_single(pair, None, None, 126)
