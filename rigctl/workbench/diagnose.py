@@ -25,7 +25,14 @@ from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.element_count import best_element_count
 from rigctl.workbench.evaluate import evaluate, simulate_run
 from rigctl.workbench.feature_info import FEATURES
-from rigctl.workbench.fitting import CandidateTask, error_or_inf, fit_candidate, identify_model
+from rigctl.workbench.fitting import (
+    FIT_ON_NFEV,
+    CandidateTask,
+    error_or_inf,
+    fit_candidate,
+    fit_on,
+    identify_model,
+)
 from rigctl.workbench.identify import (
     FitResult,
     fn_range,
@@ -62,8 +69,9 @@ from rigctl.workbench.residual_map import (
 MAX_BASE_RESTARTS = 2
 """Times a round is run again from a better fit of its own model (:func:`better_model`)."""
 MAX_AUTO_STEPS = 5  # rounds of --auto at most: each adds one effect, and this bounds its run time
-PRUNE_MAX_NFEV = 12
-"""Least-squares evaluations of the refit without an effect when checking that it earns its place."""
+PRUNE_MAX_NFEV = FIT_ON_NFEV
+"""Least-squares evaluations of the refit without an effect when checking that it earns its place
+(one pass of the final model's polishing, :func:`polish`)."""
 COST_PROBE_S = 30.0  # seconds of the first run each candidate is timed on (several cycles)
 Progress = Callable[[str], None]
 
@@ -162,27 +170,13 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
     return "nothing (no residual structure removed)"
 
 
-POLISH_MIN_GAIN = 0.03
-"""A further least-squares pass of the final model is run while the last one removed at least this
-fraction of its error (:func:`polish`)."""
-POLISH_MAX_PASSES = 3
-
-
 def polish(dataset: Dataset, result: FitResult) -> FitResult:
-    """The final model of ``--auto`` fitted on while it still gains: passes of PRUNE_MAX_NFEV
-    evaluations (the budget of each refit without an effect that it is then compared with), at most
-    POLISH_MAX_PASSES, stopping once a pass gains less than POLISH_MIN_GAIN. The candidate fits
-    that chose each effect are short (a dozen candidates per round), so the model with all its
-    effects may stop short of its minimum while the refit without one starts from there."""
-    free = free_params(result.choice, list(result.free))
-    best = result
-    for _ in range(POLISH_MAX_PASSES):
-        nxt = least_squares_fit(dataset, best.choice, free, max_nfev=PRUNE_MAX_NFEV)
-        gain = (best.error - nxt.error) / best.error if best.error > 0 else 0.0
-        if nxt.error < best.error:
-            best = nxt
-        if gain < POLISH_MIN_GAIN:
-            break
+    """The final model of ``--auto`` fitted on while it still gains (:func:`~rigctl.workbench.
+    fitting.fit_on`: passes of the budget of each refit without an effect that it is then compared
+    with). The candidate fits that chose each effect are short (a dozen candidates per round), so
+    the model with all its effects may stop short of its minimum while the refit without one
+    starts from there."""
+    best = fit_on(dataset, result)
     # uncertainties at the polished values: a further fit would be one more pass
     return result if best is result else with_uncertainties(dataset, best)
 
