@@ -47,7 +47,7 @@ from rigctl.workbench.ranking import (
 
 PAIR_FIRSTS = 2
 """Candidates continued with each other one (those that removed most of their model's error alone):
-with a dozen candidates, 22 pair fits, about two rounds' work."""
+with eleven candidates, 20 pair fits, about two rounds' work."""
 
 
 @dataclass
