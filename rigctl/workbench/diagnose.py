@@ -381,6 +381,7 @@ def diagnose(
                     "fewer parameters; adding it alone")
                 pair = None
             if pair is not None:
+                say(f"adding {pair.first} and {pair.second} together")
                 first_score = next(s for s in rnd.ranking if s.effect == pair.first)
                 diag.steps.append(DiagnosisStep(
                     len(diag.steps), pair.first_fit.choice.label(), pair.first, pair.first_fit.error,
@@ -455,7 +456,7 @@ def _try_pairs(dataset: Dataset, model: FitResult, tried: Mapping[str, tuple[Fit
     if pair is None:
         say("no pair is significant either")
     else:
-        say(f"adding {pair.first} and {pair.second} together: error {model.error:.3g} -> "
+        say(f"best pair: {pair.first} and {pair.second} together, error {model.error:.3g} -> "
             f"{pair.fit.error:.3g} ({pair.first} alone {pair.first_fit.error:.3g})")
     return pair
 
