@@ -370,6 +370,8 @@ def diagnose(
         kind = rnd.verdict.kind
         counts = {"workers": workers, "scheduler": scheduler, "timeout_s": timeout_s,
                   "in_process": in_process}
+        # the single effect --auto would add: the verdict's, or the first of an indistinguishable
+        # group (None: nothing significant)
         single = None if kind is VerdictKind.NONE else next(
             s for s in rnd.ranking if s.effect == (rnd.verdict.verdict if kind is VerdictKind.EFFECT
                                                    else rnd.verdict.candidates[0]))
@@ -399,12 +401,11 @@ def diagnose(
                     diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
                     break
                 continue
-        if not auto or kind is VerdictKind.NONE or len(diag.steps) > MAX_AUTO_STEPS:
+        if not auto or single is None or len(diag.steps) > MAX_AUTO_STEPS:
             break
-        best = rnd.verdict.verdict if kind is VerdictKind.EFFECT else rnd.verdict.candidates[0]
+        best_score, best = single, single.effect
         note = "" if kind is VerdictKind.EFFECT else \
             f"indistinguishable from {', '.join(rnd.verdict.candidates[1:])}"
-        best_score = next(s for s in rnd.ranking if s.effect == best)
         say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
         model, note = _with_element_count(dataset, refine(dataset, rnd.fits[best]), note, say,
                                           **counts)
