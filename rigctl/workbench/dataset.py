@@ -24,6 +24,7 @@ from rigctl.workbench.feature_info import (
     FLOOR_FRACTION,
     INIT_FLOOR,
     PHASE_FLOOR_FRACTION,
+    SAMPLE_FLOOR,
     UNIT_FLOOR,
 )
 from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
@@ -281,6 +282,8 @@ def _median_finite(runs: list[PreparedRun], name: str) -> float:
 def feature_scales(runs: list[PreparedRun]) -> tuple[dict[str, float], dict[str, float]]:
     drop = _median_finite(runs, "drop_N")
     slip = _median_finite(runs, "slip_m")
+    rates = [r.sample_rate_hz for r in runs if r.sample_rate_hz > 0]
+    dt = 1.0 / float(np.median(rates)) if rates else float("nan")
     scale: dict[str, float] = {}
     sigma: dict[str, float] = {}
     for name in EVENT_FEATURES:
@@ -292,6 +295,8 @@ def feature_scales(runs: list[PreparedRun]) -> tuple[dict[str, float], dict[str,
             floor = FLOOR_FRACTION * slip
         elif info.floor_kind == "relative":
             floor = FLOOR_FRACTION
+        elif info.floor_kind == "sample":
+            floor = SAMPLE_FLOOR * dt
         else:
             floor = UNIT_FLOOR
         s = _scatter(runs, name, info.log, info.phase_sensitive)

@@ -16,7 +16,8 @@ class FeatureInfo:
     phrase: str
     """Plural noun phrase for explanations ("peaks")."""
     floor_kind: str
-    """What the scatter floor is relative to: 'drop', 'slip', 'relative' or 'unit'."""
+    """What the scatter floor is relative to: 'drop', 'slip', 'relative', 'unit' or 'sample' (the
+    sample interval)."""
     phase_sensitive: bool = False
     """Depends on where the samples fall within a sub-millisecond slip: its scatter is the total
     spread of the measured values, not the successive-difference one (two records a fraction of a
@@ -56,6 +57,9 @@ FEATURES: dict[str, FeatureInfo] = {
         FeatureInfo("step_frac", "-", log=False, phrase="drop sharpnesses", floor_kind="unit",
                     phase_sensitive=True),
         FeatureInfo("slip_m", "m", log=False, phrase="slip distances", floor_kind="slip"),
+        FeatureInfo("drop_delay_s", "s", log=False,
+                    phrase="delays of the force drop behind the probes' slip",
+                    floor_kind="sample"),
         FeatureInfo("fn_swing_N", "N", log=False, phrase="normal-force swings at slips",
                     floor_kind="drop"),
         FeatureInfo("lag_m", "m", log=False,
@@ -87,6 +91,11 @@ INIT_FLOOR = 0.02
 
 UNIT_FLOOR = 0.01
 """Scatter floor of dimensionless ratios."""
+
+SAMPLE_FLOOR = 0.5
+"""Scatter floor of times read between two channels' samples (``drop_delay_s``): half a sample
+interval. Each crossing is interpolated between two samples; where the fall is not resolved (over
+one or two samples) the interpolation is all there is, and a difference below it is not evidence."""
 
 PHASE_FLOOR_FRACTION = 0.15
 """Scatter floor of phase-sensitive features: 15 % of their median value. Where the samples fall

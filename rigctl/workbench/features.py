@@ -25,6 +25,11 @@ feature                   unit    definition
                                   the white noise (aliased ringing amplitude)
 ``step_frac``             -       largest one-sample fall in the drop / drop (drop sharpness)
 ``slip_m``                m       jump of delta across the event (settled lines)
+``drop_delay_s``          s       time Ft crosses half-way between its peak and trough lines -
+                                  the time delta crosses half-way between its settled lines:
+                                  small for the mechanics (the force follows the slip within a
+                                  small part of its duration), about ln 2 tau for a force
+                                  sensor of time constant tau (``sensor_dynamics``)
 ``fn_swing_N``            N       Fn before the drop - Fn after (line fits)
 ``lag_m``                 m       x_stage (simplified drive) - delta at the drop, less its
                                   run median
@@ -61,6 +66,9 @@ MAX_NOISE_SHARE = 0.1
 """K(i) is read only where the force noise makes at most 10 % of Ft's variance in the window (the
 force range of the window at least about 11 noise RMS)."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
+DELAY_MIN_SLIP_NOISE = 10.0
+"""``drop_delay_s`` is read only for a slip of at least 10 delta noise RMS: its half-way level then
+lies 5 RMS from either settled line, beyond the noise's reach before the slip."""
 
 
 @dataclass(frozen=True)
@@ -321,10 +329,34 @@ def _levels_at_drop(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArr
     feats["stick_s"][j] = _stick_duration(drive, cyc.prev_td, td)
     if rec.d_ok(i_pre0, i_pre1) and rec.d_ok(i_post0, i_post1):
         feats["slip_m"][j] = s * (d_after - d_pk)
+        if abs(d_after - d_pk) > DELAY_MIN_SLIP_NOISE * rec.sigma_d:
+            w = max(2, round(rec.settings.detection.drop_window_s / dt))
+            i0 = max(cyc.i_pk - w, rec.idx(cyc.prev_td) + 1, 1)
+            if rec.d_ok(i0, i_post0):
+                feats["drop_delay_s"][j] = (
+                    _half_way_time(t, rec.ft_N, i0, i_post0, peak, trough)
+                    - _half_way_time(t, rec.delta_m, i0, i_post0, d_pk, d_after))
     feats["fn_swing_N"][j] = fn_pk - fn_after
     if rec.d_ok(i_pre0, i_pre1):
         feats["lag_m"][j] = xs_td - d_pk
     return _Levels(peak, trough, slope_after, post_axis, post_at, fn_pk)
+
+
+def _half_way_time(t: FloatArray, y: FloatArray, i0: int, i1: int, y_from: float,
+                   y_to: float) -> float:
+    """First time in samples [i0, i1) at which ``y`` crosses half-way from ``y_from`` to ``y_to``
+    (settled line levels, so the time moves continuously with the signal, unlike a level read from
+    the peak sample), linearly interpolated between samples; NaN where ``y`` is past that level at
+    ``i0`` already or never reaches it."""
+    sgn = 1.0 if y_to > y_from else -1.0
+    seg = sgn * (y[i0:i1] - 0.5 * (y_from + y_to))
+    past = np.flatnonzero(seg >= 0.0)
+    if past.size == 0 or past[0] == 0:
+        return math.nan
+    k = int(past[0])
+    y0, y1 = float(seg[k - 1]), float(seg[k])
+    t0, t1 = float(t[i0 + k - 1]), float(t[i0 + k])
+    return t0 + (-y0) / (y1 - y0) * (t1 - t0)
 
 
 def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray],

@@ -7,8 +7,8 @@ is taken in units of the feature's measured scatter (z). The map has four views:
 * by **stage**: mean z over initial-stage events (the slip that ends loading from rest) and over
   stable events;
 * by **phase**: stick-phase features (peak, loading rate, K(i), rounding, recurrence, probe lag) and
-  slip-phase features (drop, trough, ringing, sharpness, slip, Fn swing) - a compact view of whether
-  the model fails while the interface sticks or while it slips;
+  slip-phase features (drop, trough, ringing, sharpness, slip, drop delay, Fn swing) - a compact
+  view of whether the model fails while the interface sticks or while it slips;
 * against **covariates** (drive velocity, hold and stick time, Fn, cycle number, cumulative slip,
   Ft, dFt/dt, time): for every feature and covariate a straight-line fit z = a + b g(c), with
   g = ln for positive covariates spanning more than a decade (hold and stick times, velocities),
@@ -32,7 +32,8 @@ from rigctl.workbench.metrics import RunComparison
 from rigctl.workbench.signals import FloatArray
 
 STICK_FEATURES = ("peak_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding", "lag_m")
-SLIP_FEATURES = ("trough_N", "drop_N", "ring_N", "step_frac", "slip_m", "fn_swing_N")
+SLIP_FEATURES = ("trough_N", "drop_N", "ring_N", "step_frac", "slip_m", "drop_delay_s",
+                 "fn_swing_N")
 
 COVARIATE_NAMES: dict[str, str] = {
     "t_s": "time",

@@ -51,6 +51,9 @@ def test_uncertainties_at_a_fit_s_own_values_are_the_fit_s(tlre):
     fitted = least_squares_fit(tlre, ModelChoice("paper"), free, max_nfev=3, with_uncertainty=True)
     assert fitted.choice.values == plain.choice.values
     for name in ("mu_s", "mu_k", "k0_N_per_m"):
-        # the same finite differences, about a point that went through p -> u once more
-        assert res.sigma[name] == pytest.approx(fitted.sigma[name], rel=1e-2), name
+        # the same point, but the internal units differ (u is relative to the start: 1.0 here,
+        # 1.16 for mu_k in the fit), so the finite-difference steps differ by up to 16 % in
+        # parameter units; over a residual with sample-phase steps (drop sharpness and delay at
+        # 1024 Hz) the two Jacobians agree to a few per cent, not to rounding
+        assert res.sigma[name] == pytest.approx(fitted.sigma[name], rel=5e-2), name
     assert res.jacobian is not None and res.jacobian.shape[1] == 3
