@@ -58,7 +58,7 @@ FEATURES: dict[str, FeatureInfo] = {
                     phase_sensitive=True),
         FeatureInfo("slip_m", "m", log=False, phrase="slip distances", floor_kind="slip"),
         FeatureInfo("drop_delay_s", "s", log=False,
-                    phrase="delays of the force drop behind the probes' slip",
+                    phrase="drop delays behind the probes' slip",
                     floor_kind="sample"),
         FeatureInfo("fn_swing_N", "N", log=False, phrase="normal-force swings at slips",
                     floor_kind="drop"),

@@ -193,6 +193,8 @@ def _amount(name: str, r: FloatArray) -> str:
     unit = info.unit
     if unit == "m":
         return f"{abs(m) * 1e6:.2g} um"
+    if unit == "s":  # a delay (durations are ratios, above)
+        return f"{abs(m) * 1e3:.2g} ms"
     if unit == "-":
         return f"{abs(m):.2g}"
     return f"{abs(m):.2g} {unit}"

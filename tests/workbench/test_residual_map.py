@@ -72,6 +72,12 @@ def test_a_ratio_many_times_off_is_said_as_a_factor():
     assert _amount("k_stick_N_per_m", np.full(5, np.log(0.6))) == "40 %"
 
 
+def test_a_delay_is_said_in_milliseconds():
+    from rigctl.workbench.residual_map import _amount
+    assert _amount("drop_delay_s", np.full(5, -1.3e-3)) == "1.3 ms"
+    assert _amount("slip_m", np.full(5, 2.0e-5)) == "20 um"
+
+
 def test_a_feature_matched_exactly_has_no_bias(recwarn):
     """Residuals all exactly 0 (a feature the model reproduces to the bit, or one only a constant
     fills) have no scatter to judge a bias by: none is reported, and no NaN is made."""
