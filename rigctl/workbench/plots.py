@@ -3,6 +3,7 @@ ranking and the error-fall chart. Each function writes one PNG and returns its p
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -148,7 +149,9 @@ def residual_heatmap(rmap: ResidualMap, path: Path) -> Path:
     ax2.barh(y - 0.2, [st["initial"].get(f, np.nan) for f in labels], 0.4, label="initial")
     ax2.barh(y + 0.2, [st["stable"].get(f, np.nan) for f in labels], 0.4, label="stable")
     ax2.set_yticks(y)
-    ax2.set_yticklabels([f.split("_")[0] for f in labels], fontsize=7)
+    # the feature's name without its unit (drop_N and drop_delay_s are both "drop" by their
+    # first word)
+    ax2.set_yticklabels([re.sub(r"_(N|s|m|N_per_s|N_per_m)$", "", f) for f in labels], fontsize=7)
     ax2.set_title("mean z by stage", fontsize=9, loc="left")
     ax2.legend(fontsize=7)
     ax3 = fig.add_axes((0.76, 0.12, 0.22, 0.3))
