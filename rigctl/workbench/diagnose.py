@@ -235,18 +235,30 @@ def cost_order(
     """Candidates, slowest to simulate first (so parallel workers finish together), with their
     simulation times: each is timed on the first COST_PROBE_S of the first run (long enough for
     the slow integration paths - a nonlinear slip law, a state variable - to show over the fixed
-    costs)."""
+    costs). A candidate that cannot be simulated at its starting values (not physically valid on
+    the model, or refused) is given the largest time measured: its fit starts elsewhere and may be
+    as slow as any, and the time limit of :func:`rigctl.workbench.parallel.run_tasks` scales with
+    the cost (timed at ~0 s it had the 20 s floor, and a held-out candidate fit was stopped there
+    while the others took up to 60 s)."""
     run = dataset.runs[0]
     short = replace(run, drive=_truncate(run.drive, COST_PROBE_S))
-    costs = []
+    costs: list[float | None] = []
     fns = fn_range(dataset)
     for name in candidates:
         t0 = time.perf_counter()
         choice = model.choice.with_effect(name)
+        cost: float | None = None
         if physically_valid(choice, fns):
             with contextlib.suppress(ValueError):
                 simulate_run(choice.build(), short)
-        costs.append(time.perf_counter() - t0)
+                cost = time.perf_counter() - t0
+        costs.append(cost)
+    timed = [c for c in costs if c is not None]
+    fallback = max(timed) if timed else 1.0
+    return _slowest_first(candidates, [fallback if c is None else c for c in costs])
+
+
+def _slowest_first(candidates: Sequence[str], costs: list[float]) -> tuple[list[str], list[float]]:
     order = sorted(range(len(candidates)), key=lambda i: -costs[i])
     return [candidates[i] for i in order], [costs[i] for i in order]
 
