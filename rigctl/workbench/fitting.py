@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -485,6 +486,12 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
     # the base model (the effect off) at the end instead
     starts, J_on = _scan(dataset, choice, base_free, J_base,
                          _scan_points(eff_free, defaults, offs), n_keep=N_STARTS)
+    if offs and not math.isfinite(starts[0][0]):
+        # no scan point is physically valid on this model (the ENS record's base fit: stribeck at
+        # every vs_m_per_s): a fit from an invalid start ran into the 300 s time limit; the
+        # effect is reported switched off at once
+        return _switched_off(base, choice, offs, tuple(fp.name for fp in free), 0,
+                             f"{SWITCHED_OFF} (no physically valid start on this model)")
     # the effect's columns are differenced at every step; the base columns start from the
     # Jacobian the scan took with the effect on (an effect can change how the base parameters
     # act: a new slip law, a filtered force) and are then updated by Broyden
@@ -503,10 +510,15 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
     if (result.error > base.error or not valid) and offs:
         # nothing better than leaving the effect off, or every end misses most of the slips (a
         # trap, not a fit: identify.MAX_MISSING_FRACTION): report the base model, effect off
-        off_choice = choice.with_values({**dict(base.choice.values), **offs})
-        result = FitResult(
-            choice=off_choice, error=base.error, feature_error=dict(base.feature_error),
-            free=result.free, n_evaluations=result.n_evaluations,
-            message=SWITCHED_OFF,
-        )
+        result = _switched_off(base, choice, offs, result.free, result.n_evaluations, SWITCHED_OFF)
     return result
+
+
+def _switched_off(base: FitResult, choice: ModelChoice, offs: Mapping[str, float],
+                  free: tuple[str, ...], n_evaluations: int, message: str) -> FitResult:
+    """The base model reported as the candidate's fit, its effect switched off."""
+    return FitResult(
+        choice=choice.with_values({**dict(base.choice.values), **offs}), error=base.error,
+        feature_error=dict(base.feature_error), free=free, n_evaluations=n_evaluations,
+        message=message,
+    )
