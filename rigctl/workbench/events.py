@@ -41,6 +41,10 @@ class DetectionSettings:
     record read with these settings: a model's noise-free delta would otherwise confirm every
     small drop that the measured probe's noise leaves unconfirmed."""
 
+    def drop_window(self, dt: float) -> int:
+        """``drop_window_s`` in samples of interval ``dt`` (at least 2)."""
+        return max(2, round(self.drop_window_s / dt))
+
     @staticmethod
     def from_signal(
         ft_N: FloatArray, k_sigma: float = 12.0, frac_of_scale: float = 0.004,
@@ -93,7 +97,7 @@ def detect_slips(
     if n < 8:
         return empty
     dt = float(np.median(np.diff(t_s)))
-    w = max(2, round(settings.drop_window_s / dt))
+    w = settings.drop_window(dt)
     gap = max(w + 1, round(settings.merge_gap_s / dt))
     thr = settings.threshold_N
     fwd_min = sliding_extreme(ft_N, w, "min")

@@ -117,16 +117,19 @@ LOAD_CHANGE_FRACTION = 0.25
 Normal-force swings of the slips themselves (normal coupling, a few %) stay well below."""
 
 
-def _drop_time(t: FloatArray, f: FloatArray, i_pk: int, i_end: int, level: float, s: int) -> float:
-    """First crossing of ``level`` after the peak, linearly interpolated between samples."""
-    seg = s * f[i_pk : i_end + 1]
-    below = np.flatnonzero(seg < s * level)
-    if below.size == 0 or below[0] == 0:
-        return float(t[i_pk])
-    k = i_pk + int(below[0])
-    y0, y1 = s * f[k - 1], s * f[k]
-    frac = (y0 - s * level) / (y0 - y1) if y0 != y1 else 0.0
-    return float(t[k - 1] + frac * (t[k] - t[k - 1]))
+def _crossing_time(t: FloatArray, y: FloatArray, i0: int, i1: int, level: float,
+                   rising: bool) -> float:
+    """First time in samples [i0, i1) at which ``y`` reaches ``level`` going up (``rising``) or
+    down, linearly interpolated between samples; NaN where ``y`` is there at ``i0`` already or
+    never gets there."""
+    seg = (1.0 if rising else -1.0) * (y[i0:i1] - level)
+    past = np.flatnonzero(seg >= 0.0)
+    if past.size == 0 or past[0] == 0:
+        return math.nan
+    k = int(past[0])
+    y0, y1 = float(seg[k - 1]), float(seg[k])
+    t0, t1 = float(t[i0 + k - 1]), float(t[i0 + k])
+    return t0 + (-y0) / (y1 - y0) * (t1 - t0)
 
 
 def _stick_duration(drive: DriveProfile, t_prev: float, t_drop: float) -> float:
@@ -225,6 +228,8 @@ class _Record:
         self.sigma_d = noise_sigma(delta_m)
         self.t_motion = drive.motion_start_s()
         self.x_drive = drive.x_at(t)
+        self.drop_window = settings.detection.drop_window(self.dt)
+        """Samples a drop is read over (as the slip detection reads it)."""
 
     def idx(self, time: float) -> int:
         """Index of the first sample at or after ``time``."""
@@ -259,7 +264,9 @@ def _drop_times(rec: _Record, slips: SlipIndices) -> FloatArray:
     for j in range(slips.n):
         i_pk, i_end, s = int(slips.i_peak[j]), int(slips.i_end[j]), int(slips.sign[j])
         size0 = s * rec.ft_N[i_pk] - float(np.min(s * rec.ft_N[i_pk : i_end + 1]))
-        t_drop[j] = _drop_time(rec.t, rec.ft_N, i_pk, i_end, rec.ft_N[i_pk] - s * 0.5 * size0, s)
+        level = rec.ft_N[i_pk] - s * 0.5 * size0
+        crossing = _crossing_time(rec.t, rec.ft_N, i_pk, i_end + 1, level, rising=s < 0)
+        t_drop[j] = crossing if math.isfinite(crossing) else float(rec.t[i_pk])
     return t_drop
 
 
@@ -330,33 +337,18 @@ def _levels_at_drop(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArr
     if rec.d_ok(i_pre0, i_pre1) and rec.d_ok(i_post0, i_post1):
         feats["slip_m"][j] = s * (d_after - d_pk)
         if abs(d_after - d_pk) > DELAY_MIN_SLIP_NOISE * rec.sigma_d:
-            w = max(2, round(rec.settings.detection.drop_window_s / dt))
-            i0 = max(cyc.i_pk - w, rec.idx(cyc.prev_td) + 1, 1)
+            # half-way between the settled line levels, not from the peak sample: the time then
+            # moves continuously with the signal instead of with the sampling phase
+            i0 = max(cyc.i_pk - rec.drop_window, rec.idx(cyc.prev_td) + 1, 1)
             if rec.d_ok(i0, i_post0):
                 feats["drop_delay_s"][j] = (
-                    _half_way_time(t, rec.ft_N, i0, i_post0, peak, trough)
-                    - _half_way_time(t, rec.delta_m, i0, i_post0, d_pk, d_after))
+                    _crossing_time(t, rec.ft_N, i0, i_post0, 0.5 * (peak + trough), trough > peak)
+                    - _crossing_time(t, rec.delta_m, i0, i_post0, 0.5 * (d_pk + d_after),
+                                     d_after > d_pk))
     feats["fn_swing_N"][j] = fn_pk - fn_after
     if rec.d_ok(i_pre0, i_pre1):
         feats["lag_m"][j] = xs_td - d_pk
     return _Levels(peak, trough, slope_after, post_axis, post_at, fn_pk)
-
-
-def _half_way_time(t: FloatArray, y: FloatArray, i0: int, i1: int, y_from: float,
-                   y_to: float) -> float:
-    """First time in samples [i0, i1) at which ``y`` crosses half-way from ``y_from`` to ``y_to``
-    (settled line levels, so the time moves continuously with the signal, unlike a level read from
-    the peak sample), linearly interpolated between samples; NaN where ``y`` is past that level at
-    ``i0`` already or never reaches it."""
-    sgn = 1.0 if y_to > y_from else -1.0
-    seg = sgn * (y[i0:i1] - 0.5 * (y_from + y_to))
-    past = np.flatnonzero(seg >= 0.0)
-    if past.size == 0 or past[0] == 0:
-        return math.nan
-    k = int(past[0])
-    y0, y1 = float(seg[k - 1]), float(seg[k])
-    t0, t1 = float(t[i0 + k - 1]), float(t[i0 + k])
-    return t0 + (-y0) / (y1 - y0) * (t1 - t0)
 
 
 def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray],
@@ -415,7 +407,7 @@ def _drop_shape(rec: _Record, cyc: _Cycle, lv: _Levels, j: int,
         wgt = np.clip((tr - td - 1.5 * dt) / dt, 0.0, 1.0)
         ms = float(wgt @ dev**2) / max(float(wgt.sum()), 1e-12)
         feats["ring_N"][j] = float(np.sqrt(max(ms - rec.sigma_f**2, 0.0)))
-    w = max(2, round(rec.settings.detection.drop_window_s / dt))
+    w = rec.drop_window
     n, i_pk, s = t.shape[0], cyc.i_pk, cyc.sign
     falls = s * (ft[i_pk : min(i_pk + w, n - 1)] - ft[i_pk + 1 : min(i_pk + w + 1, n)])
     if falls.size:
