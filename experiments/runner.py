@@ -272,7 +272,10 @@ class Runner:
 
     def _wait_released(self, ctx: RunContext) -> None:
         """Give the retraction RELEASE_WAIT_S of device time to finish (the acquisition keeps
-        recording it), at most RELEASE_WAIT_HOST_S on the host clock (a device clock that stopped)."""
+        recording it), at most RELEASE_WAIT_HOST_S on the host clock (a device clock that stopped).
+
+        Device time from the acquisition itself, not ``ctx.now_s()``: that checkpoints, and the
+        safe state runs after an abort (the checkpoint would raise and skip the release check)."""
         t_dev0 = ctx.acq.device_now_s()
         deadline = time.monotonic() + RELEASE_WAIT_HOST_S
         while time.monotonic() < deadline:

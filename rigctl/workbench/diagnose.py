@@ -255,12 +255,9 @@ def cost_order(
         costs.append(cost)
     timed = [c for c in costs if c is not None]
     fallback = max(timed) if timed else 1.0
-    return _slowest_first(candidates, [fallback if c is None else c for c in costs])
-
-
-def _slowest_first(candidates: Sequence[str], costs: list[float]) -> tuple[list[str], list[float]]:
-    order = sorted(range(len(candidates)), key=lambda i: -costs[i])
-    return [candidates[i] for i in order], [costs[i] for i in order]
+    filled = [fallback if c is None else c for c in costs]
+    order = sorted(range(len(candidates)), key=lambda i: -filled[i])
+    return [candidates[i] for i in order], [filled[i] for i in order]
 
 
 def _truncate(drive: DriveProfile, t_end_s: float) -> DriveProfile:
