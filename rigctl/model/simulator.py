@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rigctl.errors import SimulationError
 from rigctl.model import layout
 from rigctl.model.drive import Drive, check_fn
 from rigctl.model.effects import CoreParams, SlipContext
@@ -37,6 +38,10 @@ def stated_rig_parameters(model: ModelSpec) -> dict[str, str]:
 
 SimProgressFn = Callable[[float, float], None]
 """progress(t_done_s, t_total_s)"""
+
+
+class SlipBudgetError(SimulationError):
+    """The model slipped more often than the run's ``max_slips`` allows."""
 
 
 class Outputs(NamedTuple):
@@ -85,7 +90,11 @@ class _Integration:
         t_out: np.ndarray,
         record_elements: bool,
         progress: SimProgressFn | None = None,
+        max_slips: int | None = None,
     ) -> Outputs:
+        """Integrate over the knots, sampling at ``t_out``; with ``max_slips``, stop with a
+        SlipBudgetError if more than that many global slips are recorded (checked whenever the
+        event table fills and at the end, so at most about twice that many are integrated)."""
         n_out = t_out.shape[0]
         knots = np.empty((layout.N_KROWS, kt_t.shape[0]))
         knots[layout.K_T] = kt_t
@@ -110,6 +119,7 @@ class _Integration:
                 t_stop, bool(hooks), record_elements,
             )
             if code == layout.RET_EVENT_TABLE_FULL:
+                self._check_slips(max_slips)
                 grown = np.full((self.ev.shape[0] * 2, layout.N_ECOLS), np.nan)
                 grown[: self.ev.shape[0]] = self.ev
                 self.ev = grown
@@ -120,12 +130,19 @@ class _Integration:
                     progress(float(self.fs[layout.S_T]), t_end)
                 if t_stop >= t_end:
                     break
+        self._check_slips(max_slips)
         if self.ist[layout.I_OUT] < n_out:
             raise RuntimeError(
                 f"integration stopped at t = {self.fs[layout.S_T]:.9g} s before output sample "
                 f"{int(self.ist[layout.I_OUT])} at {t_out[self.ist[layout.I_OUT]]:.9g} s"
             )
         return out
+
+    def _check_slips(self, max_slips: int | None) -> None:
+        n_ev = int(self.ist[layout.I_NEVENT])
+        if max_slips is not None and n_ev > max_slips:
+            raise SlipBudgetError(f"more than {max_slips} global slips by t = "
+                                     f"{self.fs[layout.S_T]:.6g} s ({n_ev} recorded)")
 
     def _run_hooks(self) -> None:
         row = self.ev[self.ist[layout.I_NEVENT] - 1]
@@ -224,8 +241,12 @@ class Simulator:
         seed: int | None = None,
         record_elements: bool = True,
         progress: SimProgressFn | None = None,
+        max_slips: int | None = None,
     ) -> SimResult:
-        """Simulate the whole drive; samples at k / rate for k = 0 .. duration * rate."""
+        """Simulate the whole drive; samples at k / rate for k = 0 .. duration * rate.
+
+        ``max_slips`` bounds the work of a model that slips far more often than anything it is
+        compared with (:class:`SlipBudgetError`, see :meth:`_Integration.integrate`)."""
         n_out = int(np.floor(drive.duration_s * self.sample_rate_hz + 1e-9)) + 1
         t_out = np.arange(n_out, dtype=np.float64) / self.sample_rate_hz
         integ = _Integration(self._setup, float(drive.x_stage_m[0]), float(drive.fn_N[0]))
@@ -236,7 +257,7 @@ class Simulator:
             kt_t = kt_t.copy()
             kt_t[-1] = t_out[-1]
         out = integ.integrate(kt_t, drive.x_stage_m, drive.fn_N, t_out, record_elements,
-                              progress)
+                              progress, max_slips)
         res = integ.result(out, t_out, integ.take_events(0.0, drive.duration_s), record_elements)
         res.metadata.update(
             {"model": self.model.describe(), "sample_rate_hz": f"{self.sample_rate_hz:g}"}

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from rigctl.errors import SimulationError
 from rigctl.model import ParameterError, ParamInfo
 from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
@@ -202,7 +203,9 @@ class Objective:
                 self._seen_valid = True
                 self.failed_norm = max(FAILED_RESIDUAL,
                                        FAILED_FACTOR * float(np.linalg.norm(vec)))
-        except ParameterError:
+        except SimulationError:
+            # not physically valid, or cannot be run (e.g. slips far more often than the data:
+            # evaluate.MODEL_SLIPS_FACTOR): the failure penalty
             vec = None
         if vec is None:
             n = self._length()
