@@ -250,7 +250,7 @@ def cost_order(
         cost: float | None = None
         if physically_valid(choice, fns):
             with contextlib.suppress(ValueError):
-                simulate_run(choice.build(), short)
+                simulate_run(choice.build(), short, bounded=True)
                 cost = time.perf_counter() - t0
         costs.append(cost)
     timed = [c for c in costs if c is not None]

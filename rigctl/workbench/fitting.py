@@ -196,7 +196,7 @@ def _score_or_none(dataset: Dataset, choice: ModelChoice, fns: tuple[float, floa
     if not physically_valid(choice, fns):
         return None
     try:
-        score = evaluate(dataset, choice).score
+        score = evaluate(dataset, choice, bounded=True).score
     except SimulationError:
         return None
     return None if misses_most_slips(dataset, score.comparisons) else score

@@ -193,7 +193,7 @@ class Objective:
         try:
             if not physically_valid(candidate, self.fn_range):
                 raise ParameterError("mu_k >= mu_s")
-            ev = evaluate(self.dataset, candidate)
+            ev = evaluate(self.dataset, candidate, bounded=True)
             vec = ev.score.vector
             if misses_most_slips(self.dataset, ev.score.comparisons):
                 self._trapped.add(key)
@@ -204,8 +204,8 @@ class Objective:
                 self.failed_norm = max(FAILED_RESIDUAL,
                                        FAILED_FACTOR * float(np.linalg.norm(vec)))
         except SimulationError:
-            # not physically valid, or cannot be run (e.g. slips far more often than the data:
-            # evaluate.MODEL_SLIPS_FACTOR): the failure penalty
+            # not physically valid, or cannot be run (e.g. slips far more often than the record
+            # can show: evaluate.slip_budget): the failure penalty
             vec = None
         if vec is None:
             n = self._length()
@@ -232,6 +232,7 @@ class Objective:
     def _length(self) -> int:
         for v in self._cache.values():
             return int(v.shape[0])
+        # the start's length even where its model slips past the budget (the fit then moves)
         return int(evaluate(self.dataset, self.choice).score.vector.shape[0])
 
 
