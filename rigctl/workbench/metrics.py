@@ -152,7 +152,16 @@ def score(dataset: Dataset, model_events: list[EventTable],
 
     ``model_images``: per run, the model's image features over the run's frames (runs with frames
     add one entry per image feature, after the initial-stage curve; a model value that cannot be
-    read counts MISSING_EVENT_Z)."""
+    read counts MISSING_EVENT_Z).
+
+    A diverging model's residuals (1e154 and more) overflow to inf: its error is inf and a fit
+    rejects it, without numpy's overflow warning on the user's console."""
+    with np.errstate(over="ignore"):
+        return _score(dataset, model_events, model_images)
+
+
+def _score(dataset: Dataset, model_events: list[EventTable],
+           model_images: list[dict[str, float]] | None) -> Score:
     imgs = model_images or [{} for _ in dataset.runs]
     comps = [compare_run(r, m, i)
              for r, m, i in zip(dataset.runs, model_events, imgs, strict=True)]
