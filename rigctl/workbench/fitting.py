@@ -258,8 +258,9 @@ def _scan(
 
     At each point the base parameters would take a Gauss-Newton step with the base Jacobian to
     absorb what the effect shifts on average (e.g. a mean friction rise); the points are ranked by
-    the cost that step predicts (|r - J J^+ r|^2, no extra simulation), and the best ``n_check``
-    are simulated after the step. Returns the ``n_keep`` best starts (cost, values), best first,
+    the cost that step predicts (|r - J J^+ r|^2, no extra simulation), the best ``n_check`` take
+    GN_SCAN_ITERATIONS such steps and the best ``n_keep`` of them up to GN_MORE_ITERATIONS more
+    while they gain (:class:`_BaseWalk`). Returns the ``n_keep`` best starts (cost, values), best first,
     from distinct scan points, and the base Jacobian taken with the effect on (None if none was
     taken).
     """
