@@ -75,7 +75,7 @@ def test_a_candidate_that_cannot_be_simulated_is_skipped_but_a_bug_is_not(
     monkeypatch.setattr(fitting, "physically_valid", lambda choice, fns: True)
 
     def evaluate_raising(exc: Exception) -> Any:
-        def evaluate(dataset: object, choice: object) -> Any:
+        def evaluate(dataset: object, choice: object, **kwargs: object) -> Any:
             raise exc
 
         return evaluate
