@@ -31,6 +31,9 @@ def _diagnose_json(capsys: pytest.CaptureFixture[str], *data: str) -> dict:  # t
     return json.loads(capsys.readouterr().out)
 
 
+# end to end: two diagnoses and two protocol runs on the simulated rig, 150-180 s of CPU; a full
+# suite run beside two benchmarks took it past the default 300 s limit (which is for hangs)
+@pytest.mark.timeout(900)
 def test_suggested_runs_tell_indistinguishable_effects_apart(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
