@@ -19,6 +19,7 @@ a failed export never leaves a half-written file.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -129,8 +130,11 @@ def _read_fast(src: Path) -> tuple[_Header, FloatArray] | None:
                 if len(head) > 10_000:
                     return None
         header = _parse_header(src, head)
-        table = np.loadtxt(src, delimiter=",", dtype=np.float64, comments=None, ndmin=2,
-                           quotechar=None, skiprows=header.line, encoding="utf-8")
+        with warnings.catch_warnings():
+            # a header without rows: the line-by-line reader names it ("no data rows")
+            warnings.filterwarnings("ignore", "loadtxt: input contained no data", UserWarning)
+            table = np.loadtxt(src, delimiter=",", dtype=np.float64, comments=None, ndmin=2,
+                               quotechar=None, skiprows=header.line, encoding="utf-8")
     except (DataError, ValueError, UnicodeDecodeError, OSError):
         return None
     if table.shape[0] == 0 or table.shape[1] != len(header.names):

@@ -112,6 +112,14 @@ CASES = [
 ]
 
 
+@pytest.mark.filterwarnings("error")
+def test_a_header_without_rows_is_named_without_a_numpy_warning(tmp_path: Path) -> None:
+    f = tmp_path / "run.csv"
+    f.write_text(f"{HEADER}\n")
+    with pytest.raises(DataError, match="no data rows"):
+        read_csv(f)
+
+
 @pytest.mark.parametrize(("text", "line", "column", "words"), CASES)
 def test_bad_input_names_file_line_and_column(
     tmp_path: Path, text: str, line: int | None, column: str | None, words: str
