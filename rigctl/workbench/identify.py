@@ -232,7 +232,8 @@ class Objective:
     def _length(self) -> int:
         for v in self._cache.values():
             return int(v.shape[0])
-        # the start's length even where its model slips past the budget (the fit then moves)
+        # unbounded: the residual's length is the data's, so a start whose model slips past the
+        # budget still gives it
         return int(evaluate(self.dataset, self.choice).score.vector.shape[0])
 
 
