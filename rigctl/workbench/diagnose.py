@@ -239,9 +239,12 @@ def cost_order(
     the model, or refused) is given the largest time measured: its fit starts elsewhere and may be
     as slow as any, and the time limit of :func:`rigctl.workbench.parallel.run_tasks` scales with
     the cost (timed at ~0 s it had the 20 s floor, and a held-out candidate fit was stopped there
-    while the others took up to 60 s)."""
+    while the others took up to 60 s). Each probe has the slip budget of its own length
+    (:func:`~rigctl.workbench.evaluate.slip_budget`), so a chattering candidate stops early."""
     run = dataset.runs[0]
-    short = replace(run, drive=_truncate(run.drive, COST_PROBE_S))
+    # the probe's own length sets its slip budget (evaluate.slip_budget), not the whole run's
+    n_probe = min(run.n_samples, math.ceil(COST_PROBE_S * run.sample_rate_hz) + 1)
+    short = replace(run, drive=_truncate(run.drive, COST_PROBE_S), n_samples=n_probe)
     costs: list[float | None] = []
     fns = fn_range(dataset)
     for name in candidates:
