@@ -124,3 +124,15 @@ def test_workers_ignore_sigint_and_the_parent_kills_them_on_keyboard_interrupt()
     left = [c for c in me.children(recursive=True) if c.pid not in before
             and c.status() != psutil.STATUS_ZOMBIE]
     assert left == []
+
+
+def test_no_task_is_stopped_before_it_ran_as_long_as_the_slowest_finished(monkeypatch):
+    """A task whose expected cost is tiny (a cheap probe) is not stopped before it has run as long
+    as a finished task took: per unit of cost it may be far slower than the others, but it is no
+    slower than a fit that was allowed to finish. Two workers: A (5 s) and B (2 s) start; C after
+    B; X (4 s, cost 0.01) after C, at about 2 s; A is the third to finish, at 5 s, with X at 3 s of
+    its 4. Its cost-scaled limit is 6 x (2 s / 1) x 0.01 = 0.12 s: the 0.5 s floor would stop it
+    at once; the slowest finished task (5 s) lets it finish."""
+    monkeypatch.setattr(parallel, "ADAPTIVE_FLOOR_S", 0.5)
+    out = run_tasks(sleeps, [5.0, 2.0, 0.05, 4.0], workers=2, costs=[10.0, 1.0, 1.0, 0.01])
+    assert out == [5.0, 2.0, 0.05, 4.0]
