@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
 import pytest
 
-from rigctl.model import CoreParams, Effect, ParamSpec, build_model
+from rigctl.model import CoreParams, Drive, Effect, ParamSpec, Simulator, build_model
 from rigctl.workbench.identify import physically_valid
 from rigctl.workbench.model_choice import ModelChoice
 
@@ -85,3 +86,22 @@ def test_physically_valid_asks_the_model_and_lets_programming_errors_through(tmp
     choice = ModelChoice("paper", ("broken_plugin",), effect_files=(str(path),))
     with pytest.raises(TypeError):  # a bug, not an invalid point: it must not be swallowed
         physically_valid(choice, (250.0, 450.0))
+
+
+def test_the_stribeck_part_is_not_held_against_the_initial_stage():
+    """With ``stribeck`` the kinetic friction at V = 0 is the stable stage's mu_s; where
+    ``load_dependent_friction`` raises mu_s with the load above the initial stage's mu_s,max, that
+    is no reason to refuse the model (the kernel caps the Stribeck part by what the elements carry,
+    and the engine runs it with its slips). Kinetic friction without it above mu_s,max still is."""
+    rising = {"load_dependent_friction": {"alpha_s": 0.4, "alpha_k": 0.4, "fn_ref_N": 300.0}}
+    model = build_model("paper", effects=["load_dependent_friction", "stribeck"],
+                        params={"mu_s": 0.15, "mu_smax": 0.16}, effect_params=rising)
+    assert model.invalid_reason((150.0, 600.0)) is None  # mu_s(600 N) = 0.198 > mu_smax
+    res = Simulator(model, sample_rate_hz=1024.0).run(Drive.constant(600.0, 2e-4, 3.0),
+                                                      record_elements=False)
+    assert np.all(np.isfinite(res.ft_N)) and res.ft_N.max() > 0.15 * 600.0
+    assert res.ft_N[-512:].min() < 0.9 * res.ft_N[-512:].max()  # still stick-slip
+    # mu_k(600 N) = 0.12 x 2^0.5 = 0.170: below the stable stage's 0.198, above mu_s,max 0.16
+    too_high = model.with_values({"mu_k": 0.12, "load_dependent_friction.alpha_k": 0.5})
+    reason = too_high.invalid_reason((150.0, 600.0))
+    assert reason is not None and "initial" in reason
