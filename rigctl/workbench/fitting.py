@@ -122,9 +122,10 @@ def identify_model(
     # an end whose model misses most slips is a trap, not a fit, whatever its error: from a start
     # that already missed them the fit cannot move (each missing slip costs a fixed z), and on a
     # held-out rig such an end (the preset, 9.36) beat the data-scale fit and was kept unmoved
-    made_slips = [r for r in results if not r.misses_most_slips]
-    best = min(made_slips or results, key=lambda r: r.error)
-    if not starts[results.index(best)][2] and _dynamics_to_fit(dataset, best.free):
+    ends = [(r, dyn) for r, (_, _, dyn) in zip(results, starts, strict=True)]
+    made_slips = [end for end in ends if not end[0].misses_most_slips]
+    best, fitted_dynamics = min(made_slips or ends, key=lambda end: end[0].error)
+    if not fitted_dynamics and _dynamics_to_fit(dataset, best.free):
         # the preset's start won on another rig's data: its stiffness and friction are now the
         # data's, so its mass and damping (still the preset's) are scanned and fitted on from
         # there; kept as they were they stayed the preset's through every later fit (held-out
