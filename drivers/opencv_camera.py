@@ -8,7 +8,9 @@ and puts it in a bounded queue; when the reader falls behind the oldest frame go
 ``queue_dropped`` counts it, and the gap in ``seq`` shows as ``dropped_before`` on the next frame.
 A frame interval above 1.5 / ``frame_rate_hz`` is a drop too (frames the camera never delivered).
 
-``playback_rate_hz`` paces a file source like a live camera (for replays and tests). Exposure and
+``playback_rate_hz`` paces a file source like a live camera (for replays and tests); its frames are
+stamped at their scheduled times (period 1 / ``playback_rate_hz`` from ``start()``), so a playback
+thread that runs late on a loaded machine delivers them late but no drop is counted. Exposure and
 gain map to ``CAP_PROP_EXPOSURE`` / ``CAP_PROP_GAIN``; OpenCV's exposure unit depends on the
 backend, so exposure is supported only when ``exposure_units_per_s`` is configured (e.g. 10,000
 for V4L2's 100 us steps), and a setting the backend refuses raises :class:`NotSupportedError`.
@@ -195,22 +197,26 @@ class OpenCvCamera(Camera):
             raise NotSupportedError(self.name, what)
 
     def _capture_loop(self) -> None:
-        period_s = None
+        period_ns = None
         if self._config.playback_rate_hz is not None:
-            period_s = 1.0 / self._config.playback_rate_hz
-        next_due = time.monotonic()
+            period_ns = round(1e9 / self._config.playback_rate_hz)
+        next_due_ns = time.monotonic_ns()
+        due_ns = next_due_ns
         while self._running:
-            if period_s is not None:
-                delay = next_due - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                next_due += period_s
+            if period_ns is not None:
+                delay_ns = next_due_ns - time.monotonic_ns()
+                if delay_ns > 0:
+                    time.sleep(delay_ns * 1e-9)
+                due_ns = next_due_ns
+                next_due_ns += period_ns
             with self._capture_lock:
                 capture = self._capture
                 if capture is None:
                     break
                 ok, image = capture.read()
-            t_ns = time.monotonic_ns()
+            # a paced file is a replay: its frames are stamped at their scheduled times, so a
+            # playback thread starved by a loaded machine emits late but loses nothing
+            t_ns = time.monotonic_ns() if period_ns is None else due_ns
             if not ok or image is None:
                 self._finish(None)
                 return

@@ -74,6 +74,37 @@ def test_paced_playback_gives_every_frame_in_order(video: Path, camera_factory) 
     assert cam.ended
 
 
+def test_starved_playback_is_late_but_counts_no_drop(video: Path, camera_factory, monkeypatch) -> None:
+    # the playback thread stalls 4 periods on frame 3 (a loaded machine): a replay loses nothing, so
+    # frames keep their scheduled stamps and no drop is counted (stamped on emission, the stall
+    # showed as 3 lost frames)
+    real_capture = cv2.VideoCapture
+
+    class StallingCapture:
+        def __init__(self, source: str) -> None:
+            self._capture = real_capture(source)
+            self.reads = 0
+
+        def read(self) -> tuple[bool, np.ndarray | None]:
+            self.reads += 1
+            if self.reads == 4:
+                time.sleep(4 / 60)
+            return self._capture.read()
+
+        def __getattr__(self, name: str) -> object:
+            return getattr(self._capture, name)
+
+    monkeypatch.setattr(cv2, "VideoCapture", StallingCapture)
+    cam = camera_factory(source=str(video), frame_rate_hz=60.0, playback_rate_hz=60.0,
+                         queue_size=N_FRAMES)
+    cam.start()
+    frames = [cam.read_frame(timeout_s=1.0) for _ in range(N_FRAMES)]
+    assert [f.seq for f in frames] == list(range(N_FRAMES))
+    assert [f.dropped_before for f in frames] == [0] * N_FRAMES and cam.frames_dropped == 0
+    intervals_ns = np.diff([f.t_monotonic_ns for f in frames])
+    assert np.all(np.abs(intervals_ns - 1e9 / 60) <= 1)
+
+
 def test_slow_reader_loses_oldest_frames_and_counts_them(video: Path, camera_factory) -> None:
     cam = camera_factory(source=str(video), queue_size=3)
     cam.start()
