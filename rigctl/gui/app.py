@@ -40,25 +40,30 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
 
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *argv])
+    from rigctl.gui.gui_thread_gc import collect_in_gui_thread, restore_automatic_gc
     from rigctl.runservice.client import ServiceStartError
     from rigctl.runservice.wire import default_address
 
+    collect_in_gui_thread()  # a worker thread must never delete the window's Qt objects
     try:
-        window = MainWindow(config, backend, speed=speed, config_path=config_path,
-                            service=None if in_process else default_address())
-    except ServiceStartError as exc:
-        print(f"rigctl gui: error: {exc}", file=sys.stderr)
-        return 1
-    panel = window.panel
-    window.show()
-    try:
-        rc = app.exec()
+        try:
+            window = MainWindow(config, backend, speed=speed, config_path=config_path,
+                                service=None if in_process else default_address())
+        except ServiceStartError as exc:
+            print(f"rigctl gui: error: {exc}", file=sys.stderr)
+            return 1
+        panel = window.panel
+        window.show()
+        try:
+            rc = app.exec()
+        finally:
+            if not panel.shutdown(timeout_s=60.0):  # e.g. the event loop ended by a signal
+                print("rigctl gui: the run did not reach a safe state within 60 s", file=sys.stderr)
+                rc = 1
+            panel.disconnect_service()
+        return rc
     finally:
-        if not panel.shutdown(timeout_s=60.0):  # e.g. the event loop ended by a signal
-            print("rigctl gui: the run did not reach a safe state within 60 s", file=sys.stderr)
-            rc = 1
-        panel.disconnect_service()
-    return rc
+        restore_automatic_gc()
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

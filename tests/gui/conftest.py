@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import pytest
 
 from rigctl.config.loader import default_config
+from rigctl.gui.gui_thread_gc import collect_in_gui_thread, restore_automatic_gc
 from rigctl.rigs import OpenRig, open_rig
 
 
@@ -22,10 +23,20 @@ def rig() -> Iterator[OpenRig]:
             stage.emergency_stop_registry.reset()
 
 
+@pytest.fixture(scope="package", autouse=True)
+def _gc_in_gui_thread(qapp: object) -> Iterator[None]:
+    """The GUI's collection policy (rigctl.gui.gui_thread_gc), as ``rigctl gui`` sets it: a worker
+    thread never collects the tests' Qt objects (one clean-clone run crashed, and a soak of these
+    tests deadlocked, in collections started by a run thread). Automatic collection is back on for
+    the tests after these."""
+    collect_in_gui_thread()
+    yield
+    restore_automatic_gc()
+
+
 @pytest.fixture(autouse=True)
 def _collect_after_each_test() -> Iterator[None]:
-    """Reference cycles of a test's Qt objects are collected when the test ends, in the main thread
-    with its run threads gone, not by a collection that happens to start inside a later test while
-    that test's run thread works (one clean-clone run crashed in such a collection)."""
+    """Each test's reference cycles are collected when it ends, in the main thread with its run
+    threads gone (the GUI-thread collector's timer runs only while a test processes events)."""
     yield
     gc.collect()

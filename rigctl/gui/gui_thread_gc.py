@@ -1,0 +1,51 @@
+"""Garbage collection only in the GUI thread, while a window is up.
+
+Python's cyclic collector runs in whichever thread happens to allocate when a generation's count
+passes its threshold. A reference cycle holding Qt objects (pyqtgraph's items, a closed window's
+widgets and menus) collected in a worker thread (the run thread, the live view's file-info worker)
+deletes QObjects outside the GUI thread. The process then crashes, or deadlocks: the worker, inside
+``QObject::~QObject`` with a Qt lock held, waits for the GIL, while the GUI thread, holding the GIL
+in a deletion shiboken queued for it, waits for that lock. Both were seen in the GUI tests (a
+segfault in a collection during a run, and a deadlock with a generation-2 collection in a worker).
+
+So while a window is up, automatic collection is off and pyqtgraph's
+:class:`~pyqtgraph.util.garbage_collector.GarbageCollector` collects on a timer in the GUI thread,
+generation by generation with the thresholds Python had. Worker threads never collect; garbage
+without cycles is freed by reference counting as always, in any thread.
+"""
+
+from __future__ import annotations
+
+import gc
+
+from pyqtgraph.util.garbage_collector import GarbageCollector
+
+INTERVAL_S = 1.0
+"""How often the GUI thread checks the collector's counts (pyqtgraph's default)."""
+
+_collector: GarbageCollector | None = None
+
+
+def collect_in_gui_thread(interval_s: float = INTERVAL_S) -> GarbageCollector:
+    """Turn automatic collection off and collect on a timer in this (the GUI) thread; idempotent.
+    Call it from the GUI thread once a QApplication exists."""
+    global _collector
+    if _collector is None:
+        _collector = GarbageCollector(interval=interval_s)
+    return _collector
+
+
+def restore_automatic_gc() -> None:
+    """Stop the timer, collect once here and turn automatic collection back on (the window is
+    gone)."""
+    global _collector
+    if _collector is not None:
+        _collector.timer.stop()
+        _collector = None
+    gc.collect()
+    gc.enable()
+
+
+def collecting_in_gui_thread() -> bool:
+    """True while :func:`collect_in_gui_thread` is in force."""
+    return _collector is not None and not gc.isenabled()
