@@ -11,6 +11,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication
 
 from rigctl.config.loader import default_config
+from rigctl.gui.gui_thread_gc import collect_in_gui_thread
 from rigctl.gui.run_panel import RunPanel
 from rigctl.runservice.wire import Address
 
@@ -20,6 +21,7 @@ PARAMS = {"repetitions": "1", "travel_m": "400e-6", "velocity_m_s": "1e-5", "pre
 
 def main() -> int:
     app = QApplication([sys.argv[0]])
+    collect_in_gui_thread()  # as `rigctl gui` does
     panel = RunPanel(default_config(), "sim", speed="10", service=Address(Path(sys.argv[1])))
     panel.camera_check.setChecked(False)
     panel.protocol_combo.setCurrentText("tlre")
