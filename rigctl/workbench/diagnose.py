@@ -44,7 +44,7 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.pairs import Pair, beats_single, best_pair, wants_pairs
 from rigctl.workbench.pairs import firsts as pair_firsts
-from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
+from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, default_workers, run_tasks
 from rigctl.workbench.ranking import (
     MIN_ERROR_REDUCTION,
     CandidateScore,
@@ -353,7 +353,8 @@ def diagnose(
     say = progress or (lambda _msg: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")
-    model = baseline or identify_model(dataset, choice)
+    base_workers = 1 if in_process or scheduler is not None else (workers or default_workers())
+    model = baseline or identify_model(dataset, choice, workers=base_workers)
     say(f"baseline error {model.error:.3g}; fitting {len(pool)} candidate effects")
     diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
     diag.steps.append(DiagnosisStep(0, model.choice.label(), None, model.error, None))

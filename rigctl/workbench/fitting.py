@@ -56,6 +56,7 @@ from rigctl.workbench.identify import (
 )
 from rigctl.workbench.metrics import Score
 from rigctl.workbench.model_choice import ModelChoice, effect_class
+from rigctl.workbench.parallel import TaskFailed, run_tasks
 from rigctl.workbench.rig_description import check_names
 
 BASELINE_MAX_NFEV = 24  # solver evaluations for the model as given (its fit is done once)
@@ -74,7 +75,7 @@ SWITCHED_OFF = "the effect does not improve the fit; reported switched off"
 
 def identify_model(
     dataset: Dataset, choice: ModelChoice, with_uncertainty: bool = True,
-    max_nfev: int = BASELINE_MAX_NFEV,
+    max_nfev: int = BASELINE_MAX_NFEV, workers: int = 1,
 ) -> FitResult:
     """Fit all identifiable parameters of ``choice`` on ``dataset``.
 
@@ -91,6 +92,10 @@ def identify_model(
     start is replaced by the ratio guess of
     :mod:`rigctl.workbench.guess` where that scores better. Parameters the rig description fixes
     are set and left out of the fit; those it bounds are fitted inside its range.
+
+    With ``workers`` > 1 the two starts are fitted at once, each in a worker process
+    (:func:`~rigctl.workbench.parallel.run_tasks`, no time limit: a base fit has no other to fall
+    back on); the ends are the same as one after the other.
     """
     rig = dataset.rig
     check_names(rig, [p.name for p in choice.parameter_table()])
@@ -117,8 +122,9 @@ def identify_model(
         else:
             starts = [min([*starts, (scaled, error_or_inf(dataset, scaled, fns), True)],
                           key=lambda start: start[1])]
-    results = [_fit_from(dataset, c, e, free, fns, free_dynamics=dyn, max_nfev=max_nfev,
-                         with_uncertainty=with_uncertainty) for c, e, dyn in starts]
+    tasks = [_StartFit(dataset, c, e, free, fns, dyn, max_nfev, with_uncertainty)
+             for c, e, dyn in starts]
+    results = _fit_starts(tasks, workers)
     # an end whose model misses most slips is a trap, not a fit, whatever its error: from a start
     # that already missed them the fit cannot move (each missing slip costs a fixed z), and on a
     # held-out rig such an end (the preset, 9.36) beat the data-scale fit and was kept unmoved
@@ -134,6 +140,37 @@ def identify_model(
         best = _fit_from(dataset, best.choice, best.error, free, fns, free_dynamics=True,
                          max_nfev=max_nfev, with_uncertainty=with_uncertainty)
     return best
+
+
+@dataclass(frozen=True)
+class _StartFit:
+    """One start of :func:`identify_model`, as a task a worker process can run."""
+
+    dataset: Dataset
+    choice: ModelChoice
+    e_start: float
+    free: list[FreeParam]
+    fns: tuple[float, float]
+    free_dynamics: bool
+    max_nfev: int
+    with_uncertainty: bool
+
+
+def _fit_start(task: _StartFit) -> FitResult:
+    return _fit_from(task.dataset, task.choice, task.e_start, task.free, task.fns,
+                     free_dynamics=task.free_dynamics, max_nfev=task.max_nfev,
+                     with_uncertainty=task.with_uncertainty)
+
+
+def _fit_starts(tasks: Sequence[_StartFit], workers: int) -> list[FitResult]:
+    """Each start's fit; at once in worker processes when there are several starts and workers.
+    A start whose worker failed is fitted again here, so that its error is raised as it would be
+    in this process (a model that cannot be simulated, an invalid parameter)."""
+    if workers <= 1 or len(tasks) <= 1:
+        return [_fit_start(t) for t in tasks]
+    outcomes = run_tasks(_fit_start, tasks, workers=min(workers, len(tasks)), timeout_s=math.inf)
+    return [_fit_start(task) if isinstance(res, TaskFailed) else res
+            for task, res in zip(tasks, outcomes, strict=True)]
 
 
 def _fit_from(dataset: Dataset, choice: ModelChoice, e_start: float, free: list[FreeParam],
