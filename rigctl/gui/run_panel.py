@@ -100,6 +100,9 @@ class _Job:
     controls: Controls
     operator: str
     notes: str
+    serial: int
+    """The panel's run serial when this job began: its camera frames are shown only while it is
+    the latest (a finished run's forwarder flushes its last frame after the next run began)."""
 
 
 @dataclass(frozen=True)
@@ -211,6 +214,9 @@ class RunPanel(QWidget):
         self._remote_busy = False
         self._mailbox = _LiveMailbox(SUBSCRIPTION_BLOCKS)
         self._frames = _LiveMailbox(FRAME_MAILBOX)
+        self._run_serial = 0
+        """Counts dry runs and runs begun here; a worker's camera frames carry its job's serial."""
+        self._serial_lock = threading.Lock()
         self.run_path: Path | None = None
         """The run file of the latest run (None before one and for a dry run)."""
         self._live_announced = False
@@ -575,7 +581,9 @@ class RunPanel(QWidget):
         """Reset what the panel shows for a new dry run or run (started here or by the queue)."""
         self._controls = Controls()
         self.run_path = out
-        self._frames.drain()
+        with self._serial_lock:  # no frame of the previous job is put between the two
+            self._run_serial += 1
+            self._frames.drain()
         self._speed = speed
         self._plan = None
         self._progress = None
@@ -626,7 +634,8 @@ class RunPanel(QWidget):
         self._begin(self.protocol.name, out, dry, speed, None)
         assert self._controls is not None
         job = _Job(dry, self.protocol, given, speed, speed_text, out, overwrite,
-                   self.camera_check.isChecked(), self._controls, operator, notes)
+                   self.camera_check.isChecked(), self._controls, operator, notes,
+                   self._run_serial)
         if self._client is not None:
             spec = JobSpec(self.protocol.name, dict(given), None if out is None else str(out),
                            overwrite=overwrite, camera=self.camera_check.isChecked(), dry=dry,
@@ -870,6 +879,14 @@ class RunPanel(QWidget):
             warnings.remove()
             self._sig.done.emit(result)
 
+    def _put_frame(self, serial: int, frame: Any) -> None:
+        """A camera frame of job ``serial`` (forwarding thread): kept only while that job is the
+        latest. A run's forwarder flushes its last frame after the run ended, when the next run may
+        have begun; shown there it put the previous run's rig times into the new run's Isum plot."""
+        with self._serial_lock:
+            if serial == self._run_serial:
+                self._frames.put(frame)
+
     def _runner(self, job: _Job, rig: OpenRig) -> Runner:
         pacer = rig.pacer
         sig = self._sig
@@ -880,7 +897,8 @@ class RunPanel(QWidget):
             sig.subscribed.emit(acq.publisher.subscribe("daq", maxlen=SUBSCRIPTION_BLOCKS))
             if acq.record_camera:
                 worker = threading.current_thread()
-                start_forwarding(acq.publisher.subscribe("camera", maxlen=120), self._frames.put,
+                start_forwarding(acq.publisher.subscribe("camera", maxlen=120),
+                                 lambda frame: self._put_frame(job.serial, frame),
                                  worker.is_alive, name="rigctl-gui-frames")
 
         def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:

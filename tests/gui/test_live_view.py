@@ -93,6 +93,40 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
         assert r.status == "completed"
 
 
+def test_a_finished_run_s_last_frame_is_not_shown_in_the_next_run(qtbot, rig, tmp_path):
+    """A run's frame forwarder flushes its last frame after the run ended; a run started at once
+    must not show it: it put the previous run's rig times (27 s) into the new run's Isum plot,
+    whose times start again at 0, and the plot kept a range of the old run's end."""
+    window = tlre_window(qtbot, rig, tmp_path / "first.h5")
+    view, panel = window.live_view, window.panel
+    panel.set_param("travel_m", "60e-6")
+    panel.start_button.click()
+    qtbot.waitUntil(lambda: panel.state == "idle" and not panel.busy, timeout=TIMEOUT_MS)
+    first_end_s = float(view.isum_history.view("t_s")[-1]) - view._t_origin
+    panel.out_edit.setText(str(tmp_path / "second.h5"))
+    panel.start_button.click()  # at once: the first run's forwarder may still be flushing
+    assert panel.state == "running"
+    qtbot.waitUntil(lambda: view.frames_received >= 5, timeout=TIMEOUT_MS)
+    t = view.isum_history.view("t_s") - view._t_origin
+    assert t[0] < 1.0 < first_end_s and np.all(np.diff(t) > 0)  # the second run's own frames
+    qtbot.waitUntil(lambda: panel.state == "idle" and not panel.busy, timeout=TIMEOUT_MS)
+
+
+def test_a_frame_of_an_earlier_job_is_dropped(qtbot, rig):
+    window = tlre_window(qtbot, rig, Path("unused.h5"), camera=True)
+    panel = window.panel
+    try:
+        panel._begin("tlre", None, True, 1.0, None)  # a dry run begins
+        old = panel._run_serial
+        panel._begin("tlre", None, True, 1.0, None)  # and another
+        panel._put_frame(old, "frame of the earlier job")
+        panel._put_frame(panel._run_serial, "frame of this job")
+        kept = panel._frames.drain()
+    finally:
+        panel._set_state("idle")  # nothing ran: the window closes without asking
+    assert kept == ["frame of this job"]
+
+
 def test_estop_from_the_live_tab_aborts_and_is_listed(qtbot, rig, tmp_path):
     out = tmp_path / "live_estop.h5"
     window = tlre_window(qtbot, rig, out, camera=False)
