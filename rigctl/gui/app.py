@@ -40,12 +40,11 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
 
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *argv])
-    from rigctl.gui.gui_thread_gc import collect_in_gui_thread, restore_automatic_gc
+    from rigctl.gui.gui_thread_gc import gui_thread_collection
     from rigctl.runservice.client import ServiceStartError
     from rigctl.runservice.wire import default_address
 
-    collect_in_gui_thread()  # a worker thread must never delete the window's Qt objects
-    try:
+    with gui_thread_collection():  # a worker thread must never delete the window's Qt objects
         try:
             window = MainWindow(config, backend, speed=speed, config_path=config_path,
                                 service=None if in_process else default_address())
@@ -62,8 +61,6 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
                 rc = 1
             panel.disconnect_service()
         return rc
-    finally:
-        restore_automatic_gc()
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

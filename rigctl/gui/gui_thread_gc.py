@@ -16,7 +16,9 @@ without cycles is freed by reference counting as always, in any thread.
 
 from __future__ import annotations
 
+import contextlib
 import gc
+from collections.abc import Iterator
 
 from pyqtgraph.util.garbage_collector import GarbageCollector
 
@@ -44,6 +46,16 @@ def restore_automatic_gc() -> None:
         _collector = None
     gc.collect()
     gc.enable()
+
+
+@contextlib.contextmanager
+def gui_thread_collection() -> Iterator[GarbageCollector]:
+    """:func:`collect_in_gui_thread` for the body, :func:`restore_automatic_gc` after it."""
+    collector = collect_in_gui_thread()
+    try:
+        yield collector
+    finally:
+        restore_automatic_gc()
 
 
 def collecting_in_gui_thread() -> bool:

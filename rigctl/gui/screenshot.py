@@ -84,47 +84,45 @@ def take_screenshot(config: RigConfig, out: Path, tab: str, after_s: float, spee
         return 1
     from PySide6.QtWidgets import QApplication
 
-    from rigctl.gui.gui_thread_gc import collect_in_gui_thread, restore_automatic_gc
+    from rigctl.gui.gui_thread_gc import gui_thread_collection
     from rigctl.gui.main_window import MainWindow
     from rigctl.rigs import open_rig, parse_speed
 
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *(argv or [])])
-    collect_in_gui_thread()  # the run thread must never delete the window's Qt objects
-    try:
-        with tempfile.TemporaryDirectory(prefix="rigctl-screenshot-") as tmp, \
-                open_rig("sim", config, parse_speed(speed_text)) as rig:
-            window = MainWindow(config, "sim", rig=rig)
-            panel = window.panel
-            try:
-                names = tab_names(window.tabs)
-                wanted = tab.strip().lower()
-                if wanted not in names:
-                    raise UsageError(f"--tab {tab!r}: no such tab; the window's tabs are "
-                                     f"{', '.join(names)}")
-                panel.protocol_combo.setCurrentText(PROTOCOL)
-                panel.out_edit.setText(str(Path(tmp) / f"screenshot_{PROTOCOL}.h5"))
-                window.resize(1400, 900)
-                window.tabs.setCurrentIndex(names[wanted])
-                window.show()
-                panel.start_button.click()
-                deadline = time.monotonic() + after_s
-                while time.monotonic() < deadline:
-                    app.processEvents()
-                    time.sleep(0.005)
+    # the collection first: the run thread must never delete the window's Qt objects
+    with gui_thread_collection(), \
+            tempfile.TemporaryDirectory(prefix="rigctl-screenshot-") as tmp, \
+            open_rig("sim", config, parse_speed(speed_text)) as rig:
+        window = MainWindow(config, "sim", rig=rig)
+        panel = window.panel
+        try:
+            names = tab_names(window.tabs)
+            wanted = tab.strip().lower()
+            if wanted not in names:
+                raise UsageError(f"--tab {tab!r}: no such tab; the window's tabs are "
+                                 f"{', '.join(names)}")
+            panel.protocol_combo.setCurrentText(PROTOCOL)
+            panel.out_edit.setText(str(Path(tmp) / f"screenshot_{PROTOCOL}.h5"))
+            window.resize(1400, 900)
+            window.tabs.setCurrentIndex(names[wanted])
+            window.show()
+            panel.start_button.click()
+            deadline = time.monotonic() + after_s
+            while time.monotonic() < deadline:
                 app.processEvents()
-                window.live_view.redraw()
-                panel.live.redraw()
-                write_png(window.grab(), out)
-                outcome = panel.last_outcome
-            finally:
-                safe = panel.shutdown(timeout_s=60.0)
-                window.live_view.shutdown()
-                window.hide()
-                window.deleteLater()
-                app.processEvents()
-    finally:
-        restore_automatic_gc()
+                time.sleep(0.005)
+            app.processEvents()
+            window.live_view.redraw()
+            panel.live.redraw()
+            write_png(window.grab(), out)
+            outcome = panel.last_outcome
+        finally:
+            safe = panel.shutdown(timeout_s=60.0)
+            window.live_view.shutdown()
+            window.hide()
+            window.deleteLater()
+            app.processEvents()
     if not safe:
         print("rigctl gui: error: the run did not reach a safe state within 60 s", file=sys.stderr)
         return 1

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import pytest
 
 from rigctl.config.loader import default_config
-from rigctl.gui.gui_thread_gc import collect_in_gui_thread, restore_automatic_gc
+from rigctl.gui.gui_thread_gc import gui_thread_collection
 from rigctl.rigs import OpenRig, open_rig
 
 
@@ -29,9 +29,8 @@ def _gc_in_gui_thread(qapp: object) -> Iterator[None]:
     thread never collects the tests' Qt objects (one clean-clone run crashed, and a soak of these
     tests deadlocked, in collections started by a run thread). Automatic collection is back on for
     the tests after these."""
-    collect_in_gui_thread()
-    yield
-    restore_automatic_gc()
+    with gui_thread_collection():
+        yield
 
 
 @pytest.fixture(autouse=True)
