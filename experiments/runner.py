@@ -266,6 +266,10 @@ class Runner:
                 if problems:
                     error = f"{error}; safe state incomplete: {'; '.join(problems)}"
                     _log.critical("safe state incomplete: %s", "; ".join(problems))
+            if not acq.catch_up(RELEASE_WAIT_HOST_S):
+                _log.warning("the record ends at %.3f s, before the end of the run at %.3f s of "
+                             "device time (the data did not catch up)", acq.t_s,
+                             acq.device_now_s())
             stats = acq.stop(status, error)
             guard_detach(self.devices.normal_stage, guard)
         return RunOutcome(status, error, self.out, plan, stats, time.monotonic() - t_wall, problems)

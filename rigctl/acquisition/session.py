@@ -302,6 +302,17 @@ class Acquisition:
                 self._new_data.wait(min(left, 0.05))
         return True
 
+    def catch_up(self, timeout_s: float) -> bool:
+        """Wait until the recorded data reach the present device instant (:meth:`device_now_s`):
+        called before :meth:`stop`, so that what the devices did up to the end of a protocol (a
+        return move that just finished, the last step marker) is in the record. On a paced
+        simulated rig, or with a reader behind the DAQ, the newest sample can be that far behind.
+        False on timeout (host seconds), a fault, or no data at all."""
+        now = self.device_now_s()
+        if not math.isfinite(now):
+            return False
+        return self.wait_until(now, timeout_s)
+
     @property
     def queue_depth(self) -> int:
         """Items waiting for the writer (blocks, frames, events)."""
