@@ -516,6 +516,11 @@ class RunPanel(QWidget):
             self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome,
                                         tuple(getattr(payload, "culprits", ()))))
         elif kind == "started":
+            if getattr(payload, "queue_item", None) is not None:
+                # a queued run: its live data follow in this thread, so the live mailboxes are
+                # reset here, in message order (the service sends all of the previous run's
+                # before its done); reset in the GUI thread, this run's first items would go too
+                self._reset_live_mailboxes()
             self._sig.remote_started.emit(payload)
         elif kind == "queue":
             self._sig.queue_state.emit(payload)
@@ -576,14 +581,24 @@ class RunPanel(QWidget):
             return out, True
         return out, False
 
-    def _begin(self, protocol_name: str, out: Path | None, dry: bool, speed: float,
-               queue_item: int | None) -> None:
-        """Reset what the panel shows for a new dry run or run (started here or by the queue)."""
-        self._controls = Controls()
-        self.run_path = out
+    def _reset_live_mailboxes(self) -> None:
+        """A new job: later camera frames and DAQ blocks are its own (the earlier ones are dropped;
+        an in-process job's frames carry its serial)."""
         with self._serial_lock:  # no frame of the previous job is put between the two
             self._run_serial += 1
             self._frames.drain()
+            if self._client is not None:
+                self._live_announced = False
+                self._mailbox.drain()
+
+    def _begin(self, protocol_name: str, out: Path | None, dry: bool, speed: float,
+               queue_item: int | None) -> None:
+        """Reset what the panel shows for a new dry run or run (started here or by the queue: a
+        queued run's live mailboxes were reset as its ``started`` came)."""
+        self._controls = Controls()
+        self.run_path = out
+        if queue_item is None:
+            self._reset_live_mailboxes()
         self._speed = speed
         self._plan = None
         self._progress = None
@@ -609,9 +624,6 @@ class RunPanel(QWidget):
         self._status("dry run: checking the plan against the limits…" if dry
                      else f"{item}starting {protocol_name}…", None)
         self._set_state("busy" if dry else "running")
-        if self._client is not None:
-            self._live_announced = False
-            self._mailbox.drain()
 
     def _launch(self, dry: bool) -> None:
         if self.busy:

@@ -64,6 +64,8 @@ DROP_CHECK_INTERVAL_S = 1.0
 ESTOP_REASON = "emergency stop"
 SNAPSHOT_INTERVAL_S = 0.4
 """Device status sent to clients this often (the Devices tab)."""
+FORWARD_JOIN_S = 5.0
+"""How long a run's end waits for its live forwarders' last items before ``done`` is sent."""
 FIRST_CLIENT_WAIT_S = 60.0
 """A new service waits at least this long for its first client before it stops as idle."""
 
@@ -153,6 +155,8 @@ class RunService:
         self._controls: Controls | None = None
         self._runner: Runner | None = None
         self._thread: threading.Thread | None = None
+        self._forwarders: list[threading.Thread] = []
+        """The live-data forwarders of the current run, joined before its ``done`` is sent."""
         self._stop = threading.Event()
         self._last_client_s = time.monotonic()
         self._idle_since = time.monotonic()
@@ -443,10 +447,24 @@ class RunService:
                 self.state.busy = False
                 self.state.paused = False
                 self._idle_since = time.monotonic()
+            self._join_forwarders()
             if result.kind == "run" and result.outcome is not None:
                 self._log("info", f"run {result.outcome.status}: {result.outcome.path}")
             self._broadcast("done", result)
             self._queue_finished(job, result)
+
+    def _join_forwarders(self) -> None:
+        """Wait for the run's live forwarders to flush their last DAQ block and camera frame, so
+        that they reach every client before the run's ``done`` (one ordered queue per client): a
+        queued run starts right after ``done``, and a window resets its live view there. A
+        forwarder still going after FORWARD_JOIN_S is left (it only sends)."""
+        forwarders, self._forwarders = self._forwarders, []
+        deadline = time.monotonic() + FORWARD_JOIN_S
+        for thread in forwarders:
+            thread.join(max(0.0, deadline - time.monotonic()))
+            if thread.is_alive():
+                _log.warning("live forwarder %s still going after %.0f s; the run's done is sent",
+                             thread.name, FORWARD_JOIN_S)
 
     def _culprits(self, runner: Runner, refusal: str) -> tuple[str, ...]:
         try:
@@ -467,12 +485,15 @@ class RunService:
             if pacer is not None:
                 pacer.follow(lambda: acq.t_s)
             sub = acq.publisher.subscribe("daq", maxlen=512)
-            threading.Thread(target=self._forward, args=(sub, acq), name="runservice-live",
-                             daemon=True).start()
+            live = threading.Thread(target=self._forward, args=(sub, acq),
+                                    name="runservice-live", daemon=True)
+            live.start()
+            self._forwarders.append(live)
             if acq.record_camera:
-                start_forwarding(acq.publisher.subscribe("camera", maxlen=120),
-                                 lambda frame: self._broadcast("frame", frame),
-                                 lambda: self.state.busy, name="runservice-frames")
+                self._forwarders.append(start_forwarding(
+                    acq.publisher.subscribe("camera", maxlen=120),
+                    lambda frame: self._broadcast("frame", frame), lambda: self.state.busy,
+                    name="runservice-frames"))
 
         def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
             ctx = runner.ctx

@@ -5,6 +5,7 @@ and the pieces it is made of (frame reduction, P(x), Isum, warning forwarding, b
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -125,6 +126,28 @@ def test_a_frame_of_an_earlier_job_is_dropped(qtbot, rig):
     finally:
         panel._set_state("idle")  # nothing ran: the window closes without asking
     assert kept == ["frame of this job"]
+
+
+def test_a_queued_run_keeps_its_first_frame_and_drops_the_previous_run_s(qtbot, rig):
+    """The run service's messages in order: a frame of the previous run, the queued run's
+    ``started``, its first frame. The window begins the queued run later, in the GUI thread; the
+    reset must fall between the two frames, not when the GUI thread gets to it (then the queued
+    run's first frame, with its first Isum values, went too)."""
+    window = tlre_window(qtbot, rig, Path("unused.h5"), camera=True)
+    panel = window.panel
+    spec = JobSpec("tlre", {}, None, dry=True, queue_item=7)
+    try:
+        messages = [("frame", "last frame of the previous run"), ("started", spec),
+                    ("frame", "first frame of the queued run")]
+        reader = threading.Thread(target=lambda: [panel._on_service_message(*m) for m in messages])
+        reader.start()  # as the client's reader thread: `started` is queued into the GUI thread
+        reader.join()
+        qtbot.waitUntil(lambda: panel._queue_item == 7, timeout=5000)  # begun in the GUI thread
+        kept = panel._frames.drain()
+    finally:
+        panel._remote_busy = False
+        panel._set_state("idle")  # nothing ran: the window closes without asking
+    assert kept == ["first frame of the queued run"]
 
 
 def test_estop_from_the_live_tab_aborts_and_is_listed(qtbot, rig, tmp_path):
@@ -300,6 +323,34 @@ def test_run_service_forwards_camera_images_and_pause_resume_events(tmp_path):
         # Isum of every camera frame, far more values than images sent
         assert isum_t.size > 3 * len(frames)
         assert any("paused" in line for line in logs) and any("resumed" in line for line in logs)
+        client.send("shutdown")
+        client.close()
+        proc.wait(60)
+
+
+@pytest.mark.slow
+def test_run_service_sends_a_run_s_live_data_before_its_done(tmp_path):
+    """Every camera frame and DAQ block of a run reaches a client before the run's ``done``: the
+    forwarders flush their last items after the run ends, and a queued run starts right after
+    ``done``; a window resets its live view there, so a later item of the old run would be shown
+    in the new one (its rig times in the new run's plots, which start again at 0)."""
+    with service_session("order") as session:
+        client, inbox, proc = session.client, session.inbox, session.proc
+        out = tmp_path / "service_order.h5"
+        client.send("start", JobSpec("tlre", {**SHORT_TLRE, "travel_m": "60e-6"}, str(out),
+                                     camera=True, speed_text="10"))
+        kinds: list[str] = []
+        deadline = time.monotonic() + 120
+        while "done" not in kinds:
+            kind, payload = inbox.get(timeout=max(0.1, deadline - time.monotonic()))
+            kinds.append(kind)
+        assert payload.kind == "run" and payload.outcome.status == "completed"
+        assert "frame" in kinds and "daq" in kinds
+        time.sleep(1.0)  # what the forwarders would still flush
+        late = []
+        while not inbox.empty():
+            late.append(inbox.get_nowait()[0])
+        assert not {"frame", "daq"} & set(late), late
         client.send("shutdown")
         client.close()
         proc.wait(60)
