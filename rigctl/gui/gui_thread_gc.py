@@ -26,36 +26,43 @@ INTERVAL_S = 1.0
 """How often the GUI thread checks the collector's counts (pyqtgraph's default)."""
 
 _collector: GarbageCollector | None = None
+_was_enabled = True
+"""Whether automatic collection was on when the collector was installed (restored after it)."""
 
 
 def collect_in_gui_thread(interval_s: float = INTERVAL_S) -> GarbageCollector:
     """Turn automatic collection off and collect on a timer in this (the GUI) thread; idempotent.
     Call it from the GUI thread once a QApplication exists."""
-    global _collector
+    global _collector, _was_enabled
     if _collector is None:
+        _was_enabled = gc.isenabled()
         _collector = GarbageCollector(interval=interval_s)
     return _collector
 
 
 def restore_automatic_gc() -> None:
-    """Stop the timer, collect once here and turn automatic collection back on (the window is
-    gone)."""
+    """Stop the timer, collect once here and put automatic collection back as it was before
+    :func:`collect_in_gui_thread` (the window is gone)."""
     global _collector
     if _collector is not None:
         _collector.timer.stop()
         _collector = None
     gc.collect()
-    gc.enable()
+    if _was_enabled:
+        gc.enable()
 
 
 @contextlib.contextmanager
 def gui_thread_collection() -> Iterator[GarbageCollector]:
-    """:func:`collect_in_gui_thread` for the body, :func:`restore_automatic_gc` after it."""
+    """:func:`collect_in_gui_thread` for the body, :func:`restore_automatic_gc` after it; nested
+    in a body where the policy is already in force, it leaves it in force."""
+    installed_here = _collector is None
     collector = collect_in_gui_thread()
     try:
         yield collector
     finally:
-        restore_automatic_gc()
+        if installed_here:
+            restore_automatic_gc()
 
 
 def collecting_in_gui_thread() -> bool:

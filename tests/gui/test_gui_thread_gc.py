@@ -11,7 +11,8 @@ import threading
 
 from PySide6.QtCore import QObject
 
-from rigctl.gui.gui_thread_gc import collecting_in_gui_thread
+from rigctl.gui import gui_thread_gc
+from rigctl.gui.gui_thread_gc import collecting_in_gui_thread, gui_thread_collection
 
 CHURN = 20_000
 """Containers a worker allocates: some 28 times the generation-0 threshold of 700."""
@@ -59,3 +60,20 @@ def test_with_automatic_collection_a_worker_would_collect_them(qtbot) -> None:
     finally:
         gc.disable()
     assert deleted_in == ["worker"]
+
+
+def test_a_nested_window_leaves_the_policy_in_force() -> None:
+    """A second window's ``gui_thread_collection`` (the screenshot inside a test session, a
+    dialog's own event loop) must not turn automatic collection back on when it ends."""
+    with gui_thread_collection():
+        pass
+    assert collecting_in_gui_thread()
+
+
+def test_the_collection_is_put_back_as_it_was(monkeypatch) -> None:
+    """A program that had automatic collection off keeps it off after the window."""
+    monkeypatch.setattr(gui_thread_gc, "_collector", None)  # as before any window
+    assert not gc.isenabled()  # the package's policy has it off
+    with gui_thread_collection():
+        assert collecting_in_gui_thread()
+    assert not gc.isenabled()
