@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
-from PySide6.QtGui import QCloseEvent, QColor, QFont
+from PySide6.QtGui import QCloseEvent, QFont
 from PySide6.QtWidgets import (
     QApplication,
     QCheckBox,
@@ -30,22 +30,18 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QFormLayout,
     QHBoxLayout,
-    QHeaderView,
     QLabel,
     QLineEdit,
     QMessageBox,
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
-    QTableWidget,
-    QTableWidgetItem,
     QVBoxLayout,
     QWidget,
 )
 
 from experiments.context import Controls
 from experiments.errors import PlanError
-from experiments.params import parse_assignments, resolve
 from experiments.protocols import PROTOCOLS, Protocol
 from experiments.runner import Plan, Runner, RunOutcome
 from rigctl.acquisition import Acquisition
@@ -53,6 +49,7 @@ from rigctl.acquisition.publisher import Subscription
 from rigctl.config import RigConfig, adapters
 from rigctl.config.loader import to_toml
 from rigctl.gui.live_plot import LivePlot
+from rigctl.gui.param_table import ParamTable
 from rigctl.gui.queue_view import QueueView
 from rigctl.gui.run_summary import values_summary
 from rigctl.rigs import OpenRig, open_rig, parse_speed
@@ -77,14 +74,6 @@ ABORT_REASON = "aborted by the operator"
 ESTOP_REASON = "emergency stop by the operator"
 
 _RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
-_COLUMNS = ("name", "value", "unit", "description")
-
-
-def format_value(value: float | int | tuple[float, ...]) -> str:
-    """A parameter value as the CLI would take it (lists comma-separated; round-trips exactly)."""
-    if isinstance(value, tuple):
-        return ", ".join(repr(float(v)) for v in value)
-    return str(value) if isinstance(value, int) else repr(float(value))
 
 
 @dataclass(frozen=True)
@@ -250,16 +239,8 @@ class RunPanel(QWidget):
         self.summary_label = QLabel()
         self.summary_label.setWordWrap(True)
 
-        self.param_table = QTableWidget(0, len(_COLUMNS))
-        self.param_table.setHorizontalHeaderLabels(list(_COLUMNS))
-        header = self.param_table.horizontalHeader()
-        header.setSectionResizeMode(0, QHeaderView.ResizeMode.ResizeToContents)
-        header.setSectionResizeMode(1, QHeaderView.ResizeMode.Interactive)
-        header.setSectionResizeMode(2, QHeaderView.ResizeMode.ResizeToContents)
-        header.setStretchLastSection(True)
-        self.param_table.setColumnWidth(1, 170)
-        self.param_table.verticalHeader().setVisible(False)
-        self.param_table.itemChanged.connect(self._on_value_edited)
+        self.param_table = ParamTable()
+        self.param_table.edited.connect(self._on_value_edited)
 
         self.out_edit = QLineEdit()
         self.out_edit.setPlaceholderText(
@@ -365,34 +346,15 @@ class RunPanel(QWidget):
         return PROTOCOLS[str(self.protocol_combo.currentData())]
 
     def _fill_params(self) -> None:
-        p = self.protocol
-        table = self.param_table
-        table.blockSignals(True)
-        table.setRowCount(len(p.params))
-        for row, d in enumerate(p.params):
-            cells = (d.name, format_value(d.default), d.unit, d.doc)
-            for col, text in enumerate(cells):
-                item = QTableWidgetItem(text)
-                item.setToolTip(f"{d.name} [{d.unit}]: {d.doc}; default {format_value(d.default)}"
-                                + ("; comma-separated list" if d.is_list else ""))
-                if col != 1:
-                    item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
-                table.setItem(row, col, item)
-        table.blockSignals(False)
+        self.param_table.show_protocol(self.protocol)
         self._update_summary()
         self._clear_stale()
 
-    def _defaults(self) -> dict[str, str]:
-        return {d.name: format_value(d.default) for d in self.protocol.params}
-
     def _update_summary(self) -> None:
-        self.summary_label.setText(values_summary(self.protocol, self.param_values(),
-                                                  self._defaults()))
+        self.summary_label.setText(values_summary(self.protocol, self.param_table.values(),
+                                                  self.param_table.defaults()))
 
-    def _on_value_edited(self, item: QTableWidgetItem) -> None:
-        if item.column() != 1:
-            return
-        self._clear_param_marks()
+    def _on_value_edited(self) -> None:
         self._update_summary()
         self._clear_stale()
 
@@ -407,82 +369,20 @@ class RunPanel(QWidget):
 
     def param_values(self) -> dict[str, str]:
         """The table's values as text, by parameter name."""
-        out: dict[str, str] = {}
-        for row in range(self.param_table.rowCount()):
-            name, value = self.param_table.item(row, 0), self.param_table.item(row, 1)
-            if name is not None and value is not None:
-                out[name.text()] = value.text()
-        return out
+        return self.param_table.values()
 
     def set_param(self, name: str, value: str) -> None:
-        for row in range(self.param_table.rowCount()):
-            item = self.param_table.item(row, 0)
-            if item is not None and item.text() == name:
-                cell = self.param_table.item(row, 1)
-                if cell is not None:
-                    cell.setText(value)
-                return
-        raise KeyError(f"protocol '{self.protocol.name}' has no parameter '{name}'")
+        self.param_table.set_value(name, value)
 
     def _given(self) -> dict[str, str]:
         """Parameters changed from their defaults, parsed and checked as the CLI's ``--param``.
 
         Raises PlanError naming the parameter (and marks its row)."""
-        p = self.protocol
-        defaults = self._defaults()
-        items = [f"{k}={v}" for k, v in self.param_values().items() if v.strip() != defaults[k]]
-        given = parse_assignments(items)
-        try:
-            resolve(p.params, given, p.name)
-        except PlanError as exc:
-            self._mark_bad((), str(exc))
-            raise
-        return given
+        return self.param_table.given()
 
     def marked_params(self) -> list[str]:
         """The parameters whose row is marked as the cause of a refusal or a bad value."""
-        return [name for name, row in self._rows().items()
-                if (cell := self.param_table.item(row, 1)) is not None
-                and cell.data(Qt.ItemDataRole.UserRole) is not None]
-
-    def _rows(self) -> dict[str, int]:
-        rows: dict[str, int] = {}
-        for row in range(self.param_table.rowCount()):
-            item = self.param_table.item(row, 0)
-            if item is not None:
-                rows[item.text()] = row
-        return rows
-
-    def _mark_bad(self, names: tuple[str, ...], message: str) -> None:
-        """Mark in red the rows of ``names`` and of every parameter the message names; the cause
-        is in the value cell's tooltip (the normal tooltip comes back with the next edit)."""
-        self.param_table.blockSignals(True)
-        for name, row in self._rows().items():
-            if name not in names and f"'{name}'" not in message:
-                continue
-            for col in range(self.param_table.columnCount()):
-                cell = self.param_table.item(row, col)
-                if cell is None:
-                    continue
-                cell.setBackground(QColor("#ffcdd2"))
-                if col == 1:
-                    cell.setData(Qt.ItemDataRole.UserRole, cell.toolTip())
-                    cell.setToolTip(f"this value causes the refusal: {message}")
-        self.param_table.blockSignals(False)
-
-    def _clear_param_marks(self) -> None:
-        self.param_table.blockSignals(True)
-        for row in range(self.param_table.rowCount()):
-            for col in range(self.param_table.columnCount()):
-                cell = self.param_table.item(row, col)
-                if cell is None:
-                    continue
-                cell.setBackground(QColor(0, 0, 0, 0))
-                saved = cell.data(Qt.ItemDataRole.UserRole)
-                if col == 1 and saved is not None:
-                    cell.setToolTip(str(saved))
-                    cell.setData(Qt.ItemDataRole.UserRole, None)
-        self.param_table.blockSignals(False)
+        return self.param_table.marked()
 
     def _browse(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Run file", self.out_edit.text()
@@ -609,7 +509,7 @@ class RunPanel(QWidget):
         self._queue_item = queue_item
         self._file_shown = False
         self._refusal_shown = False
-        self._clear_param_marks()
+        self.param_table.clear_marks()
         self.file_label.setText("")
         self.progress_label.setText("")
         if not dry:
@@ -993,7 +893,7 @@ class RunPanel(QWidget):
             self.plan_view.setStyleSheet(f"color: {_RED}")
             self._status(result.message, _RED)
             if not queued:  # a queued run's values are not those of the form
-                self._mark_bad(result.culprits, result.message)
+                self.param_table.mark_bad(result.culprits, result.message)
                 self._refusal_shown = True
         elif result.kind == "error":
             self.plan_view.setStyleSheet(f"color: {_RED}")

@@ -7,7 +7,8 @@ import pytest
 
 from experiments.protocols import PROTOCOLS
 from rigctl.config.loader import default_config
-from rigctl.gui.run_panel import RunPanel, format_value
+from rigctl.gui.param_table import format_value
+from rigctl.gui.run_panel import RunPanel
 
 SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
               "preload_hold_s": "1", "settle_s": "1"}

@@ -13,7 +13,7 @@ import pytest
 
 from rigctl.config.loader import default_config
 from rigctl.gui.main_window import MainWindow
-from rigctl.gui.run_panel import format_value
+from rigctl.gui.param_table import format_value
 from rigctl.gui.runs_panel import OVERVIEW_POINTS, RunsPanel
 from rigctl.io.csv_format import read_csv
 from rigctl.storage import RunReader
