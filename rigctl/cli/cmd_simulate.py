@@ -193,6 +193,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: drive velocity {v_max:g} m/s is {v_max * 1e3:g} mm/s: is the unit right? "
               "(velocities are in m/s)", file=sys.stderr)
     model = model_from_args(args)
+    reason = model.invalid_reason((float(np.min(drive.fn_N)), float(np.max(drive.fn_N))))
+    if reason is not None:
+        raise UsageError(f"the model cannot stick-slip at these values: {reason} (the workbench "
+                         "would refuse to fit it)")
     sim = Simulator(model, sample_rate_hz=rate)
     t0 = time.perf_counter()
     last = [0.0]

@@ -97,6 +97,9 @@ def test_a_file_being_written_is_never_replaced(tmp_path: Path) -> None:
     (["--rate", "1e7"], ("--rate",)),
     (["--duration", "1", "--param", "mu_k=0.2"], ("mu_k", "not below mu_s")),
     (["--duration", "1", "--param", "mu_k=0.09", "--param", "mu_k=0.08"], ("given twice",)),
+    # the stable stage may slip, but the initial stage's static peak is below the kinetic level
+    (["--duration", "1", "--param", "mu_s=0.3", "--param", "mu_k=0.24"],
+     ("cannot stick-slip", "mu_k (0.24) reaches mu_smax (0.2)")),
 ])
 def test_simulate_refuses_what_the_model_cannot_mean(tmp_path: Path, args: list[str],
                                                      words: tuple[str, ...]) -> None:
