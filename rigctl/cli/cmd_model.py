@@ -56,6 +56,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     _add_common(cmp)
     cmp.add_argument("--no-fit", action="store_true",
                      help="compare with the parameter values as given (no identification)")
+    cmp.add_argument("--workers", type=int, default=None, metavar="N",
+                     help="parallel processes for the fit's two starts on another rig's data "
+                          "(default: the CPUs, at most 2 used)")
     cmp.set_defaults(func=run_compare)
 
     dia = sub.add_parser("diagnose", help="rank candidate effects by evidence",
@@ -118,13 +121,17 @@ def _progress(args: argparse.Namespace) -> Any:
 
 def run_compare(args: argparse.Namespace) -> int:
     from rigctl.workbench.compare import compare
+    from rigctl.workbench.parallel import default_workers
     from rigctl.workbench.report import write_compare_report
 
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1")
     choice = _choice(args)
     if args.report:
         check_output_folder(args.report, "--report")
     runs = _load(args)
-    cmp = compare(runs, choice, identify=not args.no_fit, progress=_progress(args))
+    cmp = compare(runs, choice, identify=not args.no_fit, progress=_progress(args),
+                  workers=args.workers or default_workers())
     if args.report:
         path = write_compare_report(cmp, args.report)
         if not args.json:

@@ -119,12 +119,16 @@ def compare(
     identify: bool = True,
     dataset: Dataset | None = None,
     progress: Callable[[str], None] | None = None,
+    workers: int = 1,
 ) -> Comparison:
+    """Identify ``choice`` on the runs (unless ``identify`` is False) and compare it with them.
+    ``workers`` > 1: on another rig's data the fit's two starts go to two worker processes
+    (:func:`~rigctl.workbench.fitting.identify_model`)."""
     say = progress or (lambda _m: None)
     ds = dataset or prepare_dataset(list(runs))
     if identify:
         say(f"identifying {choice.label()} on {ds.n_events} slip events ...")
-        fit = identify_model(ds, choice)
+        fit = identify_model(ds, choice, workers=workers)
     else:
         ev0 = evaluate(ds, choice)
         fit = FitResult(choice, ev0.score.error, ev0.score.feature_error, ())

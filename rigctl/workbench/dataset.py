@@ -35,6 +35,7 @@ from rigctl.workbench.probe_range import probe_range
 from rigctl.workbench.rig_description import RigDescription, campaign_description
 from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, run_ring_fits
 from rigctl.workbench.signals import FloatArray, noise_sigma
+from rigctl.workbench.unit_checks import unit_notes
 
 BLOCK_SIZE = 6
 """Events per averaging block (the first event of each drive segment is a block of its own)."""
@@ -226,7 +227,7 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
         read=read,
         events=events,
         blocks=_blocks(events),
-        notes=tuple(probes.notes(name)),
+        notes=(*unit_notes(run, prof, name, probes.delta_measured), *probes.notes(name)),
         delta_measured=probes.delta_measured,
         ring_fits=tuple(run_ring_fits(t, run.ft_N, events.t_drop_s, slips.i_peak, slips.sign,
                                       events.features["step_frac"], noise_sigma(run.ft_N)))

@@ -101,3 +101,25 @@ def test_unknown_effect_and_missing_path_are_usage_errors(campaign, tmp_path, ca
     assert "unknown effect 'magic'" in capsys.readouterr().err
     assert main(["model", "diagnose", str(tmp_path / "nowhere")]) == 2
     assert "nowhere" in capsys.readouterr().err
+
+
+def test_compare_fits_its_starts_with_the_workers_asked(campaign, monkeypatch, capsys):
+    """`--workers N` reaches the base fit (its two starts on another rig's data go to N worker
+    processes, tests/workbench/test_parallel_starts.py); the default is the CPUs; 0 is refused."""
+    import rigctl.workbench.compare as compare_module
+    from rigctl.workbench.parallel import default_workers
+
+    asked: list[int] = []
+    identify = compare_module.identify_model
+
+    def spy(dataset, choice, **kw):
+        asked.append(kw.get("workers", 1))
+        return identify(dataset, choice, **kw)
+
+    monkeypatch.setattr(compare_module, "identify_model", spy)
+    assert main(["model", "compare", str(campaign), "--json", "--workers", "2"]) == 0
+    assert main(["model", "compare", str(campaign), "--json"]) == 0
+    assert asked == [2, default_workers()]
+    capsys.readouterr()
+    assert main(["model", "compare", str(campaign), "--workers", "0"]) == 2
+    assert "--workers must be at least 1" in capsys.readouterr().err

@@ -1,0 +1,48 @@
+"""A column left in a lab's own unit (ms, um, kN) is named in the dataset's notes; the record is
+still analysed, and a record in SI units gets no such note."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from rigctl.data import MeasuredRun
+from rigctl.model import build_model
+from rigctl.workbench.campaigns import simulate_campaign
+from rigctl.workbench.dataset import prepare_dataset
+from rigctl.workbench.unit_checks import UNIT_NOTE
+
+
+@pytest.fixture(scope="module")
+def good_run() -> MeasuredRun:
+    # 30 s at 10 um/s: the initial stage and a few stable cycles, 1024 Hz
+    return simulate_campaign(build_model("paper"), "tlre", seed=41, duration_scale=0.5)[0]
+
+
+def _unit_notes(run: MeasuredRun) -> list[str]:
+    return [n for n in prepare_dataset([run]).notes if n.startswith(UNIT_NOTE)]
+
+
+def test_a_record_in_si_units_gets_no_unit_note(good_run):
+    assert _unit_notes(good_run) == []
+
+
+@pytest.mark.parametrize(("change", "words"), [
+    ({"t_s": 1e3}, ("t_s", "not ms")),  # 1024 Hz read as 1 Hz
+    ({"x_stage_m": 1e6}, ("x_stage_m", "not um")),  # 10 um/s read as 10 m/s
+    ({"ft_N": 1e-3}, ("ft_N", "0.000", "kN")),  # friction coefficient 2e-4
+    ({"d1_m": 1e6, "d2_m": 1e6}, ("d1_m - d2_m", "not um")),  # the probes' um read as m
+])
+def test_a_column_in_another_unit_is_named(good_run, change, words):
+    run = replace(good_run, **{k: getattr(good_run, k) * f for k, f in change.items()})
+    notes = _unit_notes(run)
+    assert len(notes) == 1, notes
+    assert all(w in notes[0] for w in words), notes[0]
+
+
+def test_both_forces_in_kn_are_not_a_unit_mistake(good_run):
+    """The ratio of the forces is what is checked: a rig whose forces are both 1000 times smaller
+    (an AFM-scale contact) is not suspected."""
+    run = replace(good_run, ft_N=good_run.ft_N * 1e-3, fn_N=good_run.fn_N * 1e-3)
+    assert _unit_notes(run) == []
