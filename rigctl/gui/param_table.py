@@ -77,7 +77,8 @@ class ParamTable(QTableWidget):
         return out
 
     def set_value(self, name: str, value: str) -> None:
-        cell = self.item(self._rows()[name], 1) if name in self._rows() else None
+        row = self._rows().get(name)
+        cell = None if row is None else self.item(row, 1)
         if cell is None:
             raise KeyError(f"protocol '{self.protocol.name}' has no parameter '{name}'")
         cell.setText(value)
