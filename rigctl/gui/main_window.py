@@ -88,6 +88,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
         self.resize(1200, 760)
         self.statusBar().showMessage("ready")
+        self.panel.status_message.connect(self.statusBar().showMessage)
 
     def _live_view(self, config: RigConfig) -> LiveView:
         """The Live tab, fed what the run panel receives (blocks, camera images, events, devices)."""

@@ -147,6 +147,9 @@ class _LiveMailbox:
 class RunPanel(QWidget):
     """Protocol, parameters, output, speed; dry run / start / pause / resume / abort; live view."""
 
+    status_message = Signal(str)
+    """Each status line the panel shows (the main window's status bar repeats it)."""
+
     def __init__(
         self,
         config: RigConfig,
@@ -752,6 +755,7 @@ class RunPanel(QWidget):
                                  else "info", text)
         self.status_label.setText(text)
         self.status_label.setStyleSheet(f"color: {color}; font-weight: bold" if color else "")
+        self.status_message.emit(text)
 
     # ------------------------------------------------------------------ worker thread
     @contextlib.contextmanager

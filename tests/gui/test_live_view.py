@@ -88,6 +88,9 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
     # events: start and outcome, each with its level; the file label: path, size, free space
     text = events_text(view)
     assert "starting tlre" in text and "completed" in text
+    # the window's status bar says what the run panel says (it said "ready" through a run)
+    assert window.statusBar().currentMessage() == panel.status_label.text()
+    assert "completed" in window.statusBar().currentMessage()
     qtbot.waitUntil(lambda: f"size {format_bytes(out.stat().st_size)}" in view.file_label.text(),
                     timeout=5000)
     with RunReader(out) as r:
