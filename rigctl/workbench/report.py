@@ -110,6 +110,15 @@ def _image_section(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
     return out
 
 
+def _notes(notes: Sequence[str]) -> list[str]:
+    """What was read from the data and how (no probes, probes over range, a rig description,
+    units to check, ...): the notes ``compare`` and ``diagnose`` print, each one item."""
+    if not notes:
+        return []
+    items = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+    return [f"<h3>Notes on the data</h3><ul>{items}</ul>"]
+
+
 def _page(title: str, body: list[str]) -> str:
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
             f"</title>{_STYLE}</head><body><h1>{html.escape(title)}</h1>\n"
@@ -120,7 +129,7 @@ def write_compare_report(cmp: Comparison, folder: str | Path) -> Path:
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     body = [f"<p>Runs: {html.escape(', '.join(cmp.dataset.names))} "
-            f"({cmp.dataset.n_events} slip events)</p>"]
+            f"({cmp.dataset.n_events} slip events)</p>", *_notes(cmp.dataset.notes)]
     body += _comparison_sections(cmp, out)
     path = out / "index.html"
     path.write_text(_page("rigctl model compare", body), encoding="utf-8")
@@ -148,6 +157,7 @@ def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path,
     body = [
         f"<p>Runs: {html.escape(', '.join(diag.dataset.names))} ({diag.dataset.n_events} slip "
         f"events); protocols present: {html.escape(', '.join(diag.protocols) or 'none')}</p>",
+        *_notes(diag.dataset.notes),
         f"<h2>Verdict: {verdict}</h2>",
     ]
     if v.unexplained:

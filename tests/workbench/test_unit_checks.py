@@ -46,3 +46,17 @@ def test_both_forces_in_kn_are_not_a_unit_mistake(good_run):
     (an AFM-scale contact) is not suspected."""
     run = replace(good_run, ft_N=good_run.ft_N * 1e-3, fn_N=good_run.fn_N * 1e-3)
     assert _unit_notes(run) == []
+
+
+def test_the_report_lists_the_notes_on_the_data(good_run, tmp_path):
+    """The HTML report carries what the command line prints about the data (here the unit to
+    check), not only the fit."""
+    from rigctl.workbench.compare import compare
+    from rigctl.workbench.model_choice import ModelChoice
+    from rigctl.workbench.report import write_compare_report
+
+    run = replace(good_run, ft_N=good_run.ft_N * 1e-3)
+    cmp = compare([run], ModelChoice("paper"), identify=False)
+    page = write_compare_report(cmp, tmp_path / "report").read_text()
+    assert "Notes on the data" in page
+    assert f"{UNIT_NOTE} of" in page and "not one in kN or mN" in page
