@@ -56,14 +56,12 @@ def unit_notes(run: MeasuredRun, drive: DriveProfile, name: str,
     ratio = _friction_ratio(run)
     lo, hi = FRICTION_RANGE
     if ratio is not None and not lo <= ratio <= hi:
-        notes.append(f"{UNIT_NOTE} of {name}: |ft_N| / fn_N reaches only {ratio:.3g} under load"
-                     if ratio < lo else
-                     f"{UNIT_NOTE} of {name}: |ft_N| / fn_N reaches {ratio:.3g} under load")
-        notes[-1] += ("; friction coefficients are about 0.01 to 2: are both forces in newtons "
-                      "(not one in kN or mN)?")
+        only = "only " if ratio < lo else ""
+        notes.append(f"{UNIT_NOTE} of {name}: |ft_N| / fn_N reaches {only}{ratio:.3g} under load; "
+                     "friction coefficients are about 0.01 to 2: are both forces in newtons "
+                     "(not one in kN or mN)?")
     if delta_measured:
-        delta = run.d1_m - run.d2_m
-        span = float(np.percentile(delta, 99.5) - np.percentile(delta, 0.5))
+        span = float(np.percentile(run.delta_m, 99.5) - np.percentile(run.delta_m, 0.5))
         if span > MAX_DELTA_SPAN_M:
             notes.append(f"{UNIT_NOTE} of {name}: d1_m - d2_m spans {span:.3g} m: are the probe "
                          "readings in metres (not um or mm)?")
