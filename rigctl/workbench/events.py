@@ -132,6 +132,9 @@ def detect_slips(
         size_est = _run_size(c, ft_N, w, n)
         falls = np.flatnonzero(seg[:-1] - seg[1:] > max(0.5 * thr, 0.1 * size_est))
         i_pk = c0 + int(falls[0]) if falls.size else c0 + int(np.argmax(seg))
+        if i_pk > i_end:
+            # a lone candidate whose force is highest after its drop window: it rises on, no slip
+            continue
         size = s * ft_N[i_pk] - float(np.min(s * ft_N[i_pk : i_end + 1]))
         if size <= thr:
             continue

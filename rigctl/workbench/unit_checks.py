@@ -26,7 +26,7 @@ MAX_DRIVE_M_S = 5.0
 thousands of seconds) is a unit to check."""
 MIN_DRIVE_M_S = 1e-10
 FRICTION_RANGE = (2e-3, 20.0)
-"""|Ft|/Fn (90th percentile under load) outside this: forces in different units (N and kN)."""
+"""|Ft|/Fn (90th percentile under load, stage sliding) outside this: forces in different units (N and kN)."""
 MAX_DELTA_SPAN_M = 0.05
 """Displacement probes read micrometres to millimetres: a span of 5 cm is a unit to check."""
 UNIT_NOTE = "check the units"
@@ -53,7 +53,7 @@ def unit_notes(run: MeasuredRun, drive: DriveProfile, name: str,
         elif 0.0 < v_typ < MIN_DRIVE_M_S:
             notes.append(f"{UNIT_NOTE} of {name}: the stage moves at {v_typ:.3g} m/s: is x_stage_m "
                          "in metres (not km) and t_s in seconds (not ms)?")
-    ratio = _friction_ratio(run)
+    ratio = _friction_ratio(run, drive)
     lo, hi = FRICTION_RANGE
     if ratio is not None and not lo <= ratio <= hi:
         only = "only " if ratio < lo else ""
@@ -68,14 +68,17 @@ def unit_notes(run: MeasuredRun, drive: DriveProfile, name: str,
     return notes
 
 
-def _friction_ratio(run: MeasuredRun) -> float | None:
+def _friction_ratio(run: MeasuredRun, drive: DriveProfile) -> float | None:
     """The 90th percentile of |Ft|/|Fn| where the contact is loaded (|Fn| above half its 99th
-    percentile); None where no normal force is recorded."""
+    percentile) and the stage slides; None where no normal force is recorded. Loaded rests are left
+    out: a long rest before a short slide (Ft near 0 through most of the record) is not a force in
+    kN."""
     fn = np.abs(run.fn_N)
     top = float(np.percentile(fn, 99.0)) if fn.size else 0.0
     if not top > 0.0:
         return None
-    loaded = fn > 0.5 * top
+    sliding = drive.sliding_velocity_at(run.t_s - drive.t0_s) != 0.0
+    loaded = (fn > 0.5 * top) & sliding
     if np.count_nonzero(loaded) < 10:
         return None
     return float(np.percentile(np.abs(run.ft_N[loaded]) / fn[loaded], 90.0))

@@ -194,3 +194,16 @@ def test_a_model_record_is_confirmed_against_the_measured_probe_noise():
     settings = DetectionSettings(threshold_N=0.3, delta_sigma_m=measured.delta_sigma_m)
     assert detect_slips(run.t_s, ft, d, settings).n == 0  # 2 um < 3 x 1 um
     assert detect_slips(run.t_s, ft, d, DetectionSettings(threshold_N=0.3)).n == 1
+
+
+def test_a_lone_dip_whose_force_rises_past_its_drop_window_is_no_slip():
+    """A single drop candidate whose highest sample comes after its drop window (a gentle dip of
+    more than the threshold on a rising ramp, each step under the 'clear fall'): the force rises on,
+    there is no slip to read (this once raised on an empty slice)."""
+    dt, w = 1e-3, 4
+    ft = 40.0 + 0.3 * (np.arange(300) - 100.0)
+    ft[100:106] = [40.0, 39.6, 39.2, 38.8, 38.9, 40.5]
+    ft[106:] = 40.5 + 0.3 * np.arange(1, 195)
+    det = DetectionSettings(threshold_N=1.0, drop_window_s=w * dt)
+    slips = detect_slips(np.arange(300) * dt, ft, None, det)
+    assert slips.n == 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from rigctl.data import MeasuredRun
@@ -46,6 +47,30 @@ def test_both_forces_in_kn_are_not_a_unit_mistake(good_run):
     (an AFM-scale contact) is not suspected."""
     run = replace(good_run, ft_N=good_run.ft_N * 1e-3, fn_N=good_run.fn_N * 1e-3)
     assert _unit_notes(run) == []
+
+
+def test_a_long_loaded_rest_before_a_short_slide_is_not_a_unit_mistake(good_run):
+    """The friction ratio is read while the stage slides: a record that rests loaded (Ft near 0)
+    for 20 times as long as it slides has a friction coefficient near 0 in 95 % of its loaded
+    samples, and its forces are still both in newtons."""
+    n = good_run.t_s.size
+    dt = float(np.median(np.diff(good_run.t_s)))
+    n_rest = 20 * n
+    t_rest = good_run.t_s[0] - dt * np.arange(n_rest, 0, -1)
+    rng = np.random.default_rng(3)
+    fn0 = float(good_run.fn_N[0])
+    run = MeasuredRun(
+        t_s=np.concatenate([t_rest, good_run.t_s]),
+        x_stage_m=np.concatenate([np.full(n_rest, good_run.x_stage_m[0]), good_run.x_stage_m]),
+        fn_N=np.concatenate([fn0 + 0.01 * rng.standard_normal(n_rest), good_run.fn_N]),
+        ft_N=np.concatenate([0.01 * rng.standard_normal(n_rest), good_run.ft_N]),
+        d1_m=np.concatenate([np.full(n_rest, good_run.d1_m[0]), good_run.d1_m]),
+        d2_m=np.concatenate([np.full(n_rest, good_run.d2_m[0]), good_run.d2_m]),
+        metadata=dict(good_run.metadata), source="rest_then_slide")
+    assert fn0 > 100.0  # loaded from the first sample: the rest counts as loaded
+    assert _unit_notes(run) == []
+    kn = replace(run, ft_N=run.ft_N * 1e-3)
+    assert any("ft_N" in n for n in _unit_notes(kn))
 
 
 def test_the_report_lists_the_notes_on_the_data(good_run, tmp_path):
