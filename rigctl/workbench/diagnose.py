@@ -41,6 +41,7 @@ from rigctl.workbench.identify import (
     physically_valid,
     with_uncertainties,
 )
+from rigctl.workbench.mass_search import refit_over_mass
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.pairs import Pair, beats_single, best_pair, wants_pairs
 from rigctl.workbench.pairs import firsts as pair_firsts
@@ -430,7 +431,9 @@ def diagnose(
             diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
             break
     if auto and len(diag.steps) > 1:
-        _keep_effects_that_earn_their_place(dataset, diag, say)
+        _keep_effects_that_earn_their_place(dataset, diag, say, workers=workers,
+                                            scheduler=scheduler, timeout_s=timeout_s,
+                                            in_process=in_process)
     return diag
 
 
@@ -491,14 +494,20 @@ def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
                        choice.effect_files)
 
 
-def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: Progress) -> None:
+def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: Progress,
+                                        **run: Any) -> None:
     """Every effect ``--auto`` added must, in the final model, at least halve the error the scatter
     does not account for: the model refitted without it must be at least twice as wrong above the
     scatter (:func:`ranking.earns_its_place`; well above the scatter, twice E). One that does not
     is removed (the model refitted without it), and the last round's verdict says what no library
     effect explains. A lone added effect is so judged against the baseline; of two hidden effects
-    each alone removes only part of the error, but in the final model each halves it."""
+    each alone removes only part of the error, but in the final model each halves it. The final
+    model and each model without an effect are searched over the slider mass alike
+    (:mod:`rigctl.workbench.mass_search`) before they are compared."""
     model = polish(dataset, diag.rounds[-1].model)
+    searched = refit_over_mass(dataset, model, say=say, **run)
+    if searched is not model:
+        model = with_uncertainties(dataset, searched)
     if model.error < diag.rounds[-1].model.error:
         say(f"{model.choice.label()} fitted on: error {diag.rounds[-1].model.error:.3g} -> "
             f"{model.error:.3g}")
@@ -512,6 +521,9 @@ def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: 
                                   with_uncertainty=False, max_nfev=PRUNE_MAX_NFEV)
         except (ParameterError, SimulationError):
             continue
+        # the model without the effect gets the same mass search as the model with it: an effect
+        # is not kept for a valley the search found only for the model that has it
+        rest = refit_over_mass(dataset, rest, **run)
         if earns_its_place(model.error, rest.error):
             continue
         say(f"removing {effect}: without it the error is {rest.error:.3g}, with it "

@@ -73,3 +73,36 @@ def test_pruning_removes_the_effect_that_does_not_halve_the_excess(dataset, monk
     # a round of the pruned model closes the diagnosis; E^2 = 4 is not above twice the scatter, so
     # it has no misfit left to call unexplained
     assert len(diag.rounds) == 2 and diag.rounds[-1].verdict.unexplained == ""
+
+
+def test_the_models_without_an_effect_get_the_same_mass_search(dataset, monkeypatch):
+    """The final model and each model without one of its effects are searched over the mass
+    alike: an effect is not kept for a valley only the model with it was searched for. Here the
+    search takes the final model from 1.68 to 1.0 and the model without presliding from 2.0 to
+    1.2: presliding then gains E^2 0.44 only, and goes (against 2.0 unsearched it would stay)."""
+    both = ModelChoice("paper", ("wear", "presliding"))
+    refit_errors = {("presliding",): 3.28, ("wear",): 2.0, (): 3.5}
+    searched_errors = {("wear", "presliding"): 1.0, ("wear",): 1.2}
+    searched: list[tuple[str, ...]] = []
+
+    def search(_ds, result, **_kw):
+        searched.append(result.choice.effects)
+        better = searched_errors.get(result.choice.effects)
+        return result if better is None else _fit(result.choice, better)
+
+    monkeypatch.setattr(dg, "polish", lambda _ds, result: result)
+    monkeypatch.setattr(dg, "refine", lambda _ds, result: result)
+    monkeypatch.setattr(dg, "with_uncertainties", lambda _ds, result: result)
+    monkeypatch.setattr(dg, "refit_over_mass", search)
+    monkeypatch.setattr(dg, "identify_model", lambda _ds, choice, **_kw: _fit(
+        choice, refit_errors[choice.effects]))
+    final = _fit(both, 1.68)
+    diag = dg.Diagnosis(dataset, [dg.Round(final, [], Verdict("none", [], None), {}, [])],
+                        steps=[dg.DiagnosisStep(0, "paper", None, 3.5, None),
+                               dg.DiagnosisStep(1, "paper+wear", "wear", 2.0, -30.0),
+                               dg.DiagnosisStep(2, both.label(), "presliding", 1.68, -20.0)])
+    dg._keep_effects_that_earn_their_place(dataset, diag, lambda _msg: None)
+    assert searched[:3] == [("wear", "presliding"), ("presliding",), ("wear",)]
+    assert diag.rounds[-2].model.error == 1.0  # the searched final model
+    assert diag.rounds[-1].model.choice.effects == ("wear",)
+    assert diag.steps[-1].note.startswith("removed presliding")
