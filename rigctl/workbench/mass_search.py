@@ -4,12 +4,12 @@ The mass is the one parameter a local fit hardly moves on another rig's data: th
 overshoot and the ringing are not smooth in M, and where the sampling or a filtered sensor hides
 the ringing the error has valleys decades apart. Moving the mass alone from a fitted model says
 little, since the friction levels and stiffnesses fitted at the old mass no longer match: on
-held-out seed 4 case 5 (a 8.9 g slider behind a filtered force sensor, ``stribeck`` and
+held-out seed 4 case 5 (an 8.9 g slider behind a filtered force sensor, ``stribeck`` and
 ``sensor_dynamics`` fitted at 54 g, error 2.26) every mass from 0.3 to 20 g scored 17 to 26 as it
 stood, and 1.19 to 21.9 once the rest of the model was refitted there (0.3 g: 1.19; 20 g: 1.70).
 
 :func:`refit_over_mass` therefore refits the model's free parameters (a local least-squares fit of
-:data:`~rigctl.workbench.fitting.BASELINE_MAX_NFEV` evaluations) from each of
+:data:`REFIT_MAX_NFEV` evaluations) from each of
 :data:`REFIT_MASS_FACTORS` times its mass (the drive damping moved with sqrt(M), keeping the damping
 ratio, where it is free too) and keeps the best end that beats the model. Each point is a task of
 :func:`~rigctl.workbench.parallel.run_tasks`, so they fit in parallel. It applies only where the
