@@ -523,7 +523,7 @@ def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: 
             continue
         # the model without the effect gets the same mass search as the model with it: an effect
         # is not kept for a valley the search found only for the model that has it
-        rest = refit_over_mass(dataset, rest, **run)
+        rest = refit_over_mass(dataset, rest, say=say, **run)
         if earns_its_place(model.error, rest.error):
             continue
         say(f"removing {effect}: without it the error is {rest.error:.3g}, with it "

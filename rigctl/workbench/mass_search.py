@@ -72,13 +72,13 @@ def refit_over_mass(
     best = min(fits, key=lambda r: r.error, default=None)
     if best is None or best.error >= result.error:
         if say is not None:
-            say(f"mass search ({len(tasks)} masses refitted): no better end than "
-                f"{result.error:.3g}")
+            say(f"mass search of {result.choice.label()} ({len(tasks)} masses refitted): no "
+                f"better end than {result.error:.3g}")
         return result
     if say is not None:
         m0, m1 = _mass(result.choice), _mass(best.choice)
-        say(f"mass search: refitted from another mass, error {result.error:.3g} -> "
-            f"{best.error:.3g} (M {m0:.3g} -> {m1:.3g} kg)")
+        say(f"mass search of {result.choice.label()}: refitted from another mass, error "
+            f"{result.error:.3g} -> {best.error:.3g} (M {m0:.3g} -> {m1:.3g} kg)")
     best.message = f"refitted from another mass ({result.error:.3g} at M = " \
                    f"{_mass(result.choice):.3g} kg)"
     return best

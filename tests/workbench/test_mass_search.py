@@ -55,7 +55,7 @@ def test_a_mass_the_local_fit_does_not_leave_is_found_by_refitting_at_other_mass
     assert found.error < 0.7 * local.error
     assert _mass(found) == pytest.approx(m_true, rel=0.2)
     assert found.free == local.free
-    assert said and said[0].startswith("mass search: refitted from another mass")
+    assert said and said[0].startswith("mass search of paper: refitted from another mass")
 
 
 def test_a_stated_mass_is_not_searched(runs):
