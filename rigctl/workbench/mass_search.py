@@ -106,7 +106,7 @@ def _mass_points(dataset: Dataset, result: FitResult) -> list[ModelChoice]:
         if not lo <= m <= hi:
             continue
         trial = {"m_kg": m}
-        if "c0_N_s_per_m" in result.free and c0 > 0.0:
+        if "c0_N_s_per_m" in bounds and c0 > 0.0:
             c_lo, c_hi = bounds["c0_N_s_per_m"]
             trial["c0_N_s_per_m"] = min(max(c0 * math.sqrt(f), c_lo), c_hi)
         try:
