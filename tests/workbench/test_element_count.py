@@ -115,7 +115,7 @@ def test_auto_refits_at_the_best_count_once_presliding_is_added(monkeypatch):
     monkeypatch.setattr(dg, "better_model", lambda *a: None)
     monkeypatch.setattr(dg, "refine", lambda dataset, r: r)
     monkeypatch.setattr(dg, "best_element_count", fake_count)
-    monkeypatch.setattr(dg, "_keep_effects_that_earn_their_place", lambda *a: None)
+    monkeypatch.setattr(dg, "_keep_effects_that_earn_their_place", lambda *a, **kw: None)
     ds = SimpleNamespace(n_events=10, runs=[], rig=SimpleNamespace(fixed={}))
     monkeypatch.setattr(dg, "protocols_present", lambda d: [])
     diag = dg.diagnose(ds, ModelChoice("paper"), auto=True, baseline=base)  # type: ignore[arg-type]
