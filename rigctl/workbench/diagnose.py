@@ -171,14 +171,16 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
     return "nothing (no residual structure removed)"
 
 
-def polish(dataset: Dataset, result: FitResult) -> FitResult:
+def polish(dataset: Dataset, result: FitResult, say: Progress = lambda _m: None,
+           **run: Any) -> FitResult:
     """The final model of ``--auto`` fitted on while it still gains (:func:`~rigctl.workbench.
     fitting.fit_on`: passes of the budget of each refit without an effect that it is then compared
-    with). The candidate fits that chose each effect are short (a dozen candidates per round), so
-    the model with all its effects may stop short of its minimum while the refit without one
-    starts from there."""
-    best = fit_on(dataset, result)
-    # uncertainties at the polished values: a further fit would be one more pass
+    with), then searched over the slider mass (:func:`~rigctl.workbench.mass_search.
+    refit_over_mass`, with ``run``'s workers). The candidate fits that chose each effect are short
+    (a dozen candidates per round), so the model with all its effects may stop short of its
+    minimum while the refit without one starts from there."""
+    best = refit_over_mass(dataset, fit_on(dataset, result), say=say, **run)
+    # uncertainties once, at the end values: a further fit would be one more pass
     return result if best is result else with_uncertainties(dataset, best)
 
 
@@ -504,10 +506,7 @@ def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: 
     each alone removes only part of the error, but in the final model each halves it. The final
     model and each model without an effect are searched over the slider mass alike
     (:mod:`rigctl.workbench.mass_search`) before they are compared."""
-    model = polish(dataset, diag.rounds[-1].model)
-    searched = refit_over_mass(dataset, model, say=say, **run)
-    if searched is not model:
-        model = with_uncertainties(dataset, searched)
+    model = polish(dataset, diag.rounds[-1].model, say, **run)
     if model.error < diag.rounds[-1].model.error:
         say(f"{model.choice.label()} fitted on: error {diag.rounds[-1].model.error:.3g} -> "
             f"{model.error:.3g}")

@@ -26,7 +26,8 @@ MAX_DRIVE_M_S = 5.0
 thousands of seconds) is a unit to check."""
 MIN_DRIVE_M_S = 1e-10
 FRICTION_RANGE = (2e-3, 20.0)
-"""|Ft|/Fn (90th percentile under load, stage sliding) outside this: forces in different units (N and kN)."""
+"""|Ft|/Fn (90th percentile under load, stage sliding) outside this: forces in different units
+(N and kN)."""
 MAX_DELTA_SPAN_M = 0.05
 """Displacement probes read micrometres to millimetres: a span of 5 cm is a unit to check."""
 UNIT_NOTE = "check the units"

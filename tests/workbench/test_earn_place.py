@@ -49,18 +49,32 @@ def dataset():
     return prepare_dataset(simulate_campaign(model, "tlre", seed=3, duration_scale=0.3))
 
 
-def test_pruning_removes_the_effect_that_does_not_halve_the_excess(dataset, monkeypatch):
-    both = ModelChoice("paper", ("wear", "presliding"))
-    refit_errors = {("presliding",): 3.28, ("wear",): 2.0, (): 3.5}
-    monkeypatch.setattr(dg, "polish", lambda _ds, result: result)
+BOTH = ModelChoice("paper", ("wear", "presliding"))
+REFIT_ERRORS = {("presliding",): 3.28, ("wear",): 2.0, (): 3.5}
+"""The error of the model refitted without each effect (and without both)."""
+
+
+def _stub_refits(monkeypatch) -> None:
+    """refine as is; identify_model of a model without an effect gives REFIT_ERRORS."""
     monkeypatch.setattr(dg, "refine", lambda _ds, result: result)
     monkeypatch.setattr(dg, "identify_model", lambda _ds, choice, **_kw: _fit(
-        choice, refit_errors[choice.effects]))
-    final = _fit(both, 1.68)
-    diag = dg.Diagnosis(dataset, [dg.Round(final, [], Verdict("none", [], None), {}, [])],
+        choice, REFIT_ERRORS[choice.effects]))
+
+
+def _wear_then_presliding(dataset, final_error: float) -> dg.Diagnosis:
+    """A diagnosis that added wear (3.5 -> 2.0), then presliding (-> ``final_error``)."""
+    final = _fit(BOTH, final_error)
+    return dg.Diagnosis(dataset, [dg.Round(final, [], Verdict("none", [], None), {}, [])],
                         steps=[dg.DiagnosisStep(0, "paper", None, 3.5, None),
                                dg.DiagnosisStep(1, "paper+wear", "wear", 2.0, -30.0),
-                               dg.DiagnosisStep(2, both.label(), "presliding", 1.68, -20.0)])
+                               dg.DiagnosisStep(2, BOTH.label(), "presliding", final_error,
+                                                -20.0)])
+
+
+def test_pruning_removes_the_effect_that_does_not_halve_the_excess(dataset, monkeypatch):
+    monkeypatch.setattr(dg, "polish", lambda _ds, result, *_a, **_kw: result)
+    _stub_refits(monkeypatch)
+    diag = _wear_then_presliding(dataset, 1.68)
     said: list[str] = []
     dg._keep_effects_that_earn_their_place(dataset, diag, said.append)
     # wear: 3.28 without it, 1.68 with it -> kept (excess 3.12 -> 1.35);
@@ -80,8 +94,6 @@ def test_the_models_without_an_effect_get_the_same_mass_search(dataset, monkeypa
     alike: an effect is not kept for a valley only the model with it was searched for. Here the
     search takes the final model from 1.68 to 1.0 and the model without presliding from 2.0 to
     1.2: presliding then gains E^2 0.44 only, and goes (against 2.0 unsearched it would stay)."""
-    both = ModelChoice("paper", ("wear", "presliding"))
-    refit_errors = {("presliding",): 3.28, ("wear",): 2.0, (): 3.5}
     searched_errors = {("wear", "presliding"): 1.0, ("wear",): 1.2}
     searched: list[tuple[str, ...]] = []
 
@@ -90,17 +102,12 @@ def test_the_models_without_an_effect_get_the_same_mass_search(dataset, monkeypa
         better = searched_errors.get(result.choice.effects)
         return result if better is None else _fit(result.choice, better)
 
-    monkeypatch.setattr(dg, "polish", lambda _ds, result: result)
-    monkeypatch.setattr(dg, "refine", lambda _ds, result: result)
+    # polish itself runs (its search is the final model's), its fit passes left out
+    monkeypatch.setattr(dg, "fit_on", lambda _ds, result: result)
     monkeypatch.setattr(dg, "with_uncertainties", lambda _ds, result: result)
     monkeypatch.setattr(dg, "refit_over_mass", search)
-    monkeypatch.setattr(dg, "identify_model", lambda _ds, choice, **_kw: _fit(
-        choice, refit_errors[choice.effects]))
-    final = _fit(both, 1.68)
-    diag = dg.Diagnosis(dataset, [dg.Round(final, [], Verdict("none", [], None), {}, [])],
-                        steps=[dg.DiagnosisStep(0, "paper", None, 3.5, None),
-                               dg.DiagnosisStep(1, "paper+wear", "wear", 2.0, -30.0),
-                               dg.DiagnosisStep(2, both.label(), "presliding", 1.68, -20.0)])
+    _stub_refits(monkeypatch)
+    diag = _wear_then_presliding(dataset, 1.68)
     dg._keep_effects_that_earn_their_place(dataset, diag, lambda _msg: None)
     assert searched[:3] == [("wear", "presliding"), ("presliding",), ("wear",)]
     assert diag.rounds[-2].model.error == 1.0  # the searched final model
