@@ -20,7 +20,7 @@ the stiffnesses (:attr:`~rigctl.workbench.dataset.Dataset.mass_from_ringing`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,7 +35,7 @@ from rigctl.workbench.identify import (
     physically_valid,
 )
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.parallel import run_tasks
+from rigctl.workbench.parallel import TaskFailed, run_tasks
 
 REFIT_MASS_FACTORS: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 3.0, 10.0)
 """Multiples of the model's mass each refit starts from: two decades below, one above, in half
@@ -46,8 +46,9 @@ REFIT_MAX_NFEV = 24
 
 
 @dataclass(frozen=True)
-class _MassTask:
-    """One mass point of :func:`refit_over_mass`, as data for a worker."""
+class RefitTask:
+    """One start of a refit search (a mass point here, an effect parameter's point in
+    :mod:`rigctl.workbench.effect_search`), as data for a worker."""
 
     dataset: Dataset
     choice: ModelChoice
@@ -63,14 +64,11 @@ def refit_over_mass(
     workers, scheduler, timeout_s and in_process."""
     if "m_kg" not in result.free:
         return result
-    tasks = [_MassTask(dataset, c, result.free) for c in _mass_points(dataset, result)]
+    tasks = [RefitTask(dataset, c, result.free) for c in _mass_points(dataset, result)]
     if not tasks:
         return result
-    ends = run_tasks(_refit, tasks, **run)
-    fits = [r for r in ends if isinstance(r, FitResult) and not r.misses_most_slips
-            and math.isfinite(r.error)]
-    best = min(fits, key=lambda r: r.error, default=None)
-    if best is None or best.error >= result.error:
+    best = best_end(result, run_tasks(refit_task, tasks, **run))
+    if best is None:
         if say is not None:
             say(f"mass search of {result.choice.label()} ({len(tasks)} masses refitted): no "
                 f"better end than {result.error:.3g}")
@@ -82,6 +80,15 @@ def refit_over_mass(
     best.message = f"refitted from another mass ({result.error:.3g} at M = " \
                    f"{_mass(result.choice):.3g} kg)"
     return best
+
+
+def best_end(result: FitResult, ends: Sequence[FitResult | TaskFailed]) -> FitResult | None:
+    """The best of ``ends`` that scores better than ``result`` and does not miss most of the slips,
+    or None."""
+    fits = [r for r in ends if isinstance(r, FitResult) and not r.misses_most_slips
+            and math.isfinite(r.error)]
+    best = min(fits, key=lambda r: r.error, default=None)
+    return best if best is not None and best.error < result.error else None
 
 
 def _mass(choice: ModelChoice) -> float:
@@ -118,7 +125,9 @@ def _mass_points(dataset: Dataset, result: FitResult) -> list[ModelChoice]:
     return out
 
 
-def _refit(task: _MassTask) -> FitResult:
+def refit_task(task: RefitTask) -> FitResult:
+    """A local fit of ``task.free`` (REFIT_MAX_NFEV evaluations) from ``task.choice``; a start that
+    cannot be run gives an end with an infinite error."""
     try:
         free = free_params(task.choice, list(task.free), rig=task.dataset.rig)
         return least_squares_fit(task.dataset, task.choice, free, max_nfev=REFIT_MAX_NFEV)
