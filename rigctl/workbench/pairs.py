@@ -25,7 +25,7 @@ second effect, sensor dynamics, had ended at 3.40 where the fit with Stribeck, s
 had stopped at 4.54) and then searched over their effects' parameters
 (:func:`~rigctl.workbench.effect_search.refit_over_effects`: fitted on, the hidden pair had stayed
 at 6.51, third, with a Stribeck velocity of 1.33 m/s against the generating 2.98, and a refit
-from three times that velocity ends at 1.15), and against the single effect ``--auto`` would otherwise add
+from three times that velocity ends at 1.29), and against the single effect ``--auto`` would otherwise add
 (:func:`beats_single`); each of its effects must then earn its place in the final model like any
 other (``diagnose``'s pruning).
 """
@@ -152,7 +152,7 @@ def best_pair(
                 progress(f"  {p.score.effect}: error {p.fit.error:.3g} -> {end.error:.3g}")
             p.fit = end
     # and searched over their effects' parameters (held-out seed 4 case 11: the hidden pair, third
-    # at 6.51 after fitting on, ends at 0.956 refitted from three times its Stribeck velocity)
+    # at 6.51 after fitting on, ends at 1.29 refitted from three times its Stribeck velocity)
     searched = refit_over_effects(dataset, [p.fit for p in close], [(p.first, p.second) for p in close],
                                   say=progress, workers=workers, scheduler=scheduler,
                                   timeout_s=timeout_s, in_process=in_process)

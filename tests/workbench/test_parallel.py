@@ -71,9 +71,11 @@ def test_the_adaptive_limit_scales_with_each_tasks_expected_cost(monkeypatch):
     slower than the quick ones, while one that overruns its own share still is."""
     monkeypatch.setattr(parallel, "ADAPTIVE_FLOOR_S", 0.5)
     quick = [0.05, 0.05, 0.05]
-    # The slow task sleeps 5 s so that the limit (6 x the slowest quick task, whose measured time
-    # includes the worker's start) stays below it even when a loaded machine starts workers slowly.
-    blind = run_tasks(sleeps, [*quick, 5.0], workers=4)
+    # The slow task would sleep 30 s, so that the limit (6 x the slowest quick task, whose measured
+    # time includes the worker's start) stays below it even when a loaded machine starts workers
+    # slowly (with 5 s it was not stopped under nice 15 beside three busy processes on two cores);
+    # stopped at the limit, it costs only that.
+    blind = run_tasks(sleeps, [*quick, 30.0], workers=4)
     assert isinstance(blind[3], TaskFailed) and "time limit" in blind[3].message
     aware = run_tasks(sleeps, [*quick, 5.0], workers=4, costs=[1.0, 1.0, 1.0, 40.0])
     assert aware[3] == 5.0
