@@ -4,9 +4,9 @@ A candidate or pair fit scans an effect's parameters once, at the start, from th
 to (:mod:`rigctl.workbench.fitting`); the local fit then moves them only as far as its valley goes.
 Two effects fitted together can end in a valley that no local step leaves. On held-out seed 4 case
 11 (load-dependent friction and a Stribeck law hidden) the pair's fit ended at 6.61 with the
-Stribeck velocity at 1.33 m/s and fitted on only to 6.51. Set to 2.98 m/s (generating 2.98) the
-model first scores 18.7, worse, and the refit of the whole model from there ends at 0.956 (the
-generating model scores 0.784): the valleys are separated by a ridge in v_s.
+Stribeck velocity at 1.33 m/s and fitted on only to 6.51. Set at the 6.61 end to the generating
+2.98 m/s, the model first scores 18.7, worse, and the refit of the whole model from there ends at
+0.956 (the generating model scores 0.784): the valleys are separated by a ridge in v_s.
 
 :func:`refit_over_effects` therefore refits each model's free parameters (the local fit of
 :func:`~rigctl.workbench.mass_search.refit_task`) from :data:`EFFECT_SEARCH_FACTORS` times each of
