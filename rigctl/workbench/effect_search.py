@@ -21,10 +21,9 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from rigctl.model import ParameterError
 from rigctl.workbench.dataset import Dataset
-from rigctl.workbench.identify import FitResult, fn_range, free_params, physically_valid
-from rigctl.workbench.mass_search import RefitTask, best_end, refit_task
+from rigctl.workbench.identify import FitResult, fn_range, free_params
+from rigctl.workbench.mass_search import RefitTask, best_end, refit_task, valid_start
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.parallel import run_tasks
 
@@ -53,11 +52,8 @@ def effect_points(dataset: Dataset, result: FitResult,
             v = min(max(v0 * f, fp.lower), fp.upper)
             if v == v0:
                 continue
-            try:
-                choice = result.choice.with_values({fp.name: v})
-            except ParameterError:
-                continue
-            if physically_valid(choice, fns):
+            choice = valid_start(result.choice, {fp.name: v}, fns)
+            if choice is not None:
                 out.append((f"{fp.name} {v0:.3g} -> {v:.3g}", choice))
     return out
 

@@ -116,13 +116,21 @@ def _mass_points(dataset: Dataset, result: FitResult) -> list[ModelChoice]:
         if "c0_N_s_per_m" in bounds and c0 > 0.0:
             c_lo, c_hi = bounds["c0_N_s_per_m"]
             trial["c0_N_s_per_m"] = min(max(c0 * math.sqrt(f), c_lo), c_hi)
-        try:
-            choice = result.choice.with_values(trial)
-        except ParameterError:
-            continue
-        if physically_valid(choice, fns):
+        choice = valid_start(result.choice, trial, fns)
+        if choice is not None:
             out.append(choice)
     return out
+
+
+def valid_start(choice: ModelChoice, trial: dict[str, float],
+                fns: tuple[float, float]) -> ModelChoice | None:
+    """``choice`` with ``trial``'s values, or None where a parameter's range refuses them or the
+    model there is not physically valid (no start for a refit)."""
+    try:
+        moved = choice.with_values(trial)
+    except ParameterError:
+        return None
+    return moved if physically_valid(moved, fns) else None
 
 
 def refit_task(task: RefitTask) -> FitResult:

@@ -142,14 +142,19 @@ def test_pairs_near_the_best_are_fitted_on_before_one_is_chosen(fits, fitted, mo
     assert on == ["load_dependent_friction+presliding", "load_dependent_friction+stribeck"]
 
 
+def _hidden_pair_third(monkeypatch) -> None:
+    """Held-out seed 4 case 11's pair round: two wrong pairs ahead of the hidden one (6.61)."""
+    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "rate_state"), 4.81)
+    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "wear"), 5.21)
+    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "stribeck"), 6.61)
+
+
 def test_a_pair_is_fitted_on_once_in_its_better_order(fits, fitted, monkeypatch) -> None:
     """Both orders of one pair fit the same model: the worse order does not take one of the
     MAX_CLOSE places (held-out seed 4 case 11: one pair in both orders took two of the three, and
     the hidden pair, fourth, was not fitted on)."""
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "rate_state"), 4.81)
+    _hidden_pair_third(monkeypatch)
     monkeypatch.setitem(TOGETHER, ("rate_state", "load_dependent_friction"), 5.2)
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "wear"), 5.21)
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "stribeck"), 6.61)
     monkeypatch.setitem(FINISHED, ("load_dependent_friction", "stribeck"), 1.4)
     pair = pairs.best_pair(_Events(), MODEL, fits, workers=1, in_process=True)  # type: ignore[arg-type]
     on = sorted(b for a, b in fitted if a == "fit on")
@@ -163,9 +168,7 @@ def test_pairs_near_the_best_are_searched_over_their_effects_parameters(fits, fi
     """Fitted on, a pair may stay in a valley no local step leaves (held-out seed 4 case 11: the
     hidden pair at 6.51, third; refitted from three times its Stribeck velocity, 1.29): each pair
     fitted on is then searched (rigctl.workbench.effect_search), and the best end is taken."""
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "rate_state"), 4.81)
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "wear"), 5.21)
-    monkeypatch.setitem(TOGETHER, ("load_dependent_friction", "stribeck"), 6.61)
+    _hidden_pair_third(monkeypatch)
     monkeypatch.setitem(FINISHED, ("load_dependent_friction", "rate_state"), 3.07)
     monkeypatch.setitem(FINISHED, ("load_dependent_friction", "stribeck"), 6.51)
     monkeypatch.setitem(SEARCHED, ("load_dependent_friction", "stribeck"), 0.956)
