@@ -136,8 +136,16 @@ does not (:class:`Objective`)."""
 
 def misses_most_slips(dataset: Dataset, comparisons: Sequence[RunComparison]) -> bool:
     """Whether the model of ``comparisons`` misses more than :data:`MAX_MISSING_FRACTION` of the
-    dataset's measured slips."""
-    missing = sum(int(np.count_nonzero(c.missing["drop_N"])) for c in comparisons)
+    dataset's measured slips.
+
+    A measured slip paired with the model's first slip of its segment for want of a later one (a
+    *stand-in*, :func:`~rigctl.workbench.alignment.stand_in_pairs`) is missed too: the model has no
+    slip of its own for it, and the metric charges it as a missing slip (capped z). Counting only
+    the unpaired ones let the trap through in another form: on a held-out TLRE with 12 slips, fits
+    that made one slip, its 11 followers stand-ins, scored 12.7 to 17 against 43 for the base fit
+    that made all 12."""
+    missing = sum(int(np.count_nonzero(c.missing["drop_N"])) + int(np.count_nonzero(c.stand_in))
+                  for c in comparisons)
     return missing > MAX_MISSING_FRACTION * max(dataset.n_events, 1)
 
 

@@ -18,6 +18,7 @@ from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
 from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.events import DetectionSettings
 from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
+from rigctl.workbench.identify import misses_most_slips
 from rigctl.workbench.metrics import MISSING_EVENT_Z, physical_errors, score
 from rigctl.workbench.residual_map import _event_table
 
@@ -133,6 +134,30 @@ def test_a_first_slip_standing_in_for_missing_later_ones_costs_no_more_than_miss
     both = _table([1.0, 4.5], [0, 0], peak=[45.0, 45.0])
     assert stand_in_pairs(meas, both, match_events(meas, both)).tolist() == [False] * 3
     assert score(_dataset(meas, 1), [both]).feature_error["peak_N"] > 100.0
+
+
+def test_slips_only_stood_in_for_count_as_missed_slips():
+    """The no-slip trap's other form: a model that makes only the first slip of a segment has
+    every later measured slip paired with it as a stand-in, none unpaired, and its capped error can
+    beat a model that makes every slip (held-out seed 3 case 3: one slip for 12 scored 12.7, the
+    base fit making all 12 scored 43.3). Such a model misses most slips."""
+    meas = _table([1.0, 4.0, 7.0, 10.0], [0, 0, 0, 0], peak=[45.0, 20.0, 20.0, 20.0])
+    only_first = score(_dataset(meas, 1), [_table([1.0], [0], peak=[45.0])])
+    assert not only_first.comparisons[0].missing["drop_N"].any()  # all four are paired
+    assert misses_most_slips(_dataset(meas, 1), only_first.comparisons)
+    # one stood in for in each of two segments: two of eight, not most
+    two = _table([1.0, 4.0, 7.0, 10.0, 51.0, 54.0, 57.0, 60.0], [0, 0, 0, 0, 1, 1, 1, 1])
+    model = _table([1.0, 4.0, 7.0, 51.0, 54.0, 57.0], [0, 0, 0, 1, 1, 1])
+    assert not misses_most_slips(_dataset(two, 2), score(_dataset(two, 2), [model]).comparisons)
+    # two of three segments made only by their first slip: six of eight stood in for
+    few = _table([1.0, 51.0, 54.0, 57.0], [0, 1, 1, 1])
+    sc = score(_dataset(two, 2), [few])
+    assert int(sc.comparisons[0].stand_in.sum()) == 3
+    assert not misses_most_slips(_dataset(two, 2), sc.comparisons)  # three of eight
+    first_only = _table([1.0, 51.0], [0, 1])
+    sc = score(_dataset(two, 2), [first_only])
+    assert int(sc.comparisons[0].stand_in.sum()) == 6
+    assert misses_most_slips(_dataset(two, 2), sc.comparisons)
 
 
 def test_a_marginal_slip_the_model_does_not_make_is_not_charged():
