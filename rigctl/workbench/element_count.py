@@ -37,8 +37,9 @@ N = 10 and 0.51 refitted at N = 9)."""
 REFINE_MAX = 6
 """At most this many refinement counts, the nearest first."""
 MIN_GAIN = 0.1
-"""Another count is taken only where it removes at least this fraction of the error: it gets
-``max_nfev`` more evaluations than the model it is compared with, which alone gains a little."""
+"""Another count is taken only where it removes at least this fraction of the model's error: it gets
+``max_nfev`` more evaluations than the model, which alone gains a little. Among the other counts,
+each refitted alike, the lowest error wins."""
 MAX_NFEV = 12
 """Least-squares evaluations of the refit at each count."""
 
@@ -105,7 +106,10 @@ def refine_counts(n_best: int) -> list[int]:
 
 def _best_of(dataset: Dataset, result: FitResult, best: FitResult, counts: list[int], n_now: int,
              max_nfev: int, say: Callable[[str], None], run: dict[str, Any]) -> FitResult:
-    """``best``, or the refit of ``result`` at one of ``counts`` that removes MIN_GAIN of it."""
+    """``best``, or the refit of ``result`` at one of ``counts`` that removes MIN_GAIN of
+    ``result``'s error and scores below ``best`` (held-out seed 3 case 3, generated with N = 38:
+    refitted at N = 20 and 40 the model scored 1.73 and 1.58 from 4.01 at N = 10; asking 40 to
+    gain MIN_GAIN on 20 as well kept 20)."""
     tasks = [CountTask(dataset, result.choice.with_values({"n_elements": n}), tuple(result.free),
                        max_nfev) for n in counts]
     outcomes = run_tasks(fit_at_count, tasks, **run)
@@ -114,7 +118,8 @@ def _best_of(dataset: Dataset, result: FitResult, best: FitResult, counts: list[
             say(f"  N = {n} elements: no fit ({fit.message.splitlines()[0]})")
             continue
         say(f"  N = {n} elements: error {fit.error:.3g} (N = {n_now}: {result.error:.3g})")
-        if fit.misses_most_slips or not fit.error < (1.0 - MIN_GAIN) * best.error:
+        if fit.misses_most_slips or not fit.error < min((1.0 - MIN_GAIN) * result.error,
+                                                        best.error):
             continue
         best = fit
     return best

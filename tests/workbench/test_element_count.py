@@ -57,6 +57,18 @@ def test_the_count_that_fits_best_is_kept(fits):
     assert best.error == 3.5
 
 
+def test_among_the_other_counts_the_lowest_error_wins(fits):
+    """MIN_GAIN is asked against the model's own count (the refits get more evaluations than it
+    had), not between two refits alike: held-out seed 3 case 3 (generated with N = 38) scored 1.73
+    at N = 20 and 1.58 at N = 40 from 4.01 at N = 10, and 40 must win."""
+    fits.errors = {5: 7.2, 20: 1.73, 40: 1.58, 39: 1.5, 41: 1.6, 38: 1.45, 42: 1.7, 37: 1.55,
+                   43: 1.8}
+    model = _result(ModelChoice("paper", ("presliding",)), 4.01)
+    best = ec.best_element_count(_dataset(), model, in_process=True)
+    assert fits.calls == [5, 20, 40, 39, 41, 38, 42, 37, 43]
+    assert best.choice.build().n_elements == 38 and best.error == 1.45
+
+
 def test_a_count_next_to_the_model_s_own_is_found(fits):
     """With few elements one more or less changes every stick ramp's rounding (held-out seed 5
     case 1, generated with N = 9, scored 2.63 at N = 10 and 0.51 at N = 9): where no coarse count
