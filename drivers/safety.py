@@ -26,27 +26,46 @@ import time
 import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from drivers.errors import EmergencyStopActive, ForceLimitError, StaleReadingError
-
-if TYPE_CHECKING:
-    from drivers.interfaces import LoadingStage
+from drivers.ratings import RATED_NORMAL_FORCE_N
 
 _log = logging.getLogger(__name__)
 
-DEFAULT_FORCE_LIMIT_N = 800.0
-"""Maximum normal load of the rig's normal loading stage (Han et al. 2022, Section 2.1)."""
+DEFAULT_FORCE_LIMIT_N = RATED_NORMAL_FORCE_N
+"""The force guard's default limit: the normal stage's rated load (:mod:`drivers.ratings`)."""
+
+
+class Stoppable(Protocol):
+    """What the emergency stop and the stale-reading guard stop: a named stage (any
+    :class:`~drivers.interfaces.LoadingStage`). Typing against this, not the stage class, keeps
+    this module below the interfaces (they import it; it imports none of them)."""
+
+    @property
+    def name(self) -> str: ...
+
+    def stop(self) -> None: ...
+
+    def emergency_stop(self) -> None: ...
 
 
 class Interlock(Protocol):
     """Something that may refuse a stage command by raising a :class:`DeviceError`."""
 
-    def check_command(self, stage: LoadingStage, command: str) -> None:
+    def check_command(self, stage: Stoppable, command: str) -> None:
         """Raise to refuse ``command`` on ``stage``; return to allow it."""
         ...
+
+
+class GuardedStage(Stoppable, Protocol):
+    """What the force guard guards: a stage that also takes interlocks."""
+
+    def add_interlock(self, interlock: Interlock) -> None: ...
+
+    def remove_interlock(self, interlock: Interlock) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -62,25 +81,25 @@ class EmergencyStop:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._stages: list[weakref.ref[LoadingStage]] = []
+        self._stages: list[weakref.ref[Stoppable]] = []
         self._reason: str | None = None
         self._triggered_monotonic_ns: int | None = None
         self._failures: list[StopFailure] = []
 
     # registration -------------------------------------------------------------------------------
-    def register(self, stage: LoadingStage) -> None:
+    def register(self, stage: Stoppable) -> None:
         """Add ``stage`` (held by a weak reference; registering twice is harmless)."""
         with self._lock:
             self._prune()
             if all(ref() is not stage for ref in self._stages):
                 self._stages.append(weakref.ref(stage))
 
-    def unregister(self, stage: LoadingStage) -> None:
+    def unregister(self, stage: Stoppable) -> None:
         """Remove ``stage`` (no error if it was not registered)."""
         with self._lock:
             self._stages = [ref for ref in self._stages if ref() not in (None, stage)]
 
-    def stages(self) -> list[LoadingStage]:
+    def stages(self) -> list[Stoppable]:
         """The stages currently registered."""
         with self._lock:
             self._prune()
@@ -138,14 +157,14 @@ class EmergencyStop:
         with self._lock:
             return list(self._failures)
 
-    def check_command(self, stage: LoadingStage, command: str) -> None:
+    def check_command(self, stage: Stoppable, command: str) -> None:
         """Interlock hook: refuse every motion command while latched."""
         reason = self._reason
         if reason is not None:
             raise EmergencyStopActive(stage.name, reason)
 
 
-def _stop_all(stages: Iterable[LoadingStage]) -> list[StopFailure]:
+def _stop_all(stages: Iterable[Stoppable]) -> list[StopFailure]:
     failures = []
     for stage in stages:
         try:
@@ -174,7 +193,7 @@ class ForceGuard:
 
     def __init__(
         self,
-        stage: LoadingStage,
+        stage: GuardedStage,
         limit_N: float = DEFAULT_FORCE_LIMIT_N,
         *,
         also_trigger: EmergencyStop | None = None,
@@ -268,7 +287,7 @@ class ForceGuard:
         """True between :meth:`allow_release` and the first block of readings within the limit."""
         return self._release_ceiling_N is not None
 
-    def check_command(self, stage: LoadingStage, command: str) -> None:
+    def check_command(self, stage: Stoppable, command: str) -> None:
         """Interlock hook: refuse motion commands of the guarded stage while tripped."""
         trip = self._trip
         if trip is not None and stage is self._stage:
@@ -296,7 +315,7 @@ class StaleReadingGuard:
     block repeated): only the values are judged.
     """
 
-    def __init__(self, stages: Iterable[LoadingStage], device: str = "daq",
+    def __init__(self, stages: Iterable[Stoppable], device: str = "daq",
                  window_s: float = STALE_WINDOW_S) -> None:
         if not (math.isfinite(window_s) and window_s > 0):
             raise ValueError(f"stale-reading window must be a positive number of s: {window_s!r}")

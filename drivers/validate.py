@@ -1,9 +1,12 @@
-"""One check of a configured number: a real number, finite, within its bounds, unit in the message.
+"""One check of a number: a real number, finite, within its bounds, unit in the message.
 
-Used by the drivers' and simulators' configuration classes (``StageConfig``, ``CanDaqConfig``,
-``ProbeConfig``, ``CameraConfig``, the virtual rig's ``RigConfig``), by the rig configuration's
-:func:`rigctl.config.fields.setting` bounds, by the model's ``ParamSpec`` and by the protocols'
-``ParamDef``, so that all of them refuse the same values with the same words::
+A configured number (a setting) is refused with :class:`SettingError`; a command argument (a move's
+target, a rate, a timeout) with :class:`InvalidValueError` (``check_argument``, ``check_count``),
+by the same tests. Used by the device interfaces' commands and ``StageLimits``
+(``drivers.interfaces``), by the drivers' and simulators' configuration classes (``StageConfig``,
+``CanDaqConfig``, ``ProbeConfig``, ``CameraConfig``, the virtual rig's ``RigConfig``), by the rig
+configuration's :func:`rigctl.config.fields.setting` bounds, by the model's ``ParamSpec`` and by
+the protocols' ``ParamDef``, so that all of them refuse the same values with the same words::
 
     timeout_s = check_number("probe 'd1'", "timeout_s", 0.3, unit="s", gt=0.0)   # 0.3
     check_number("probe 'd1'", "timeout_s", -1, unit="s", gt=0.0)
@@ -18,7 +21,7 @@ import math
 
 import numpy as np
 
-from drivers.errors import SettingError
+from drivers.errors import InvalidValueError, SettingError
 
 
 def real_number(value: object) -> float | None:
@@ -89,3 +92,40 @@ def check_integer(owner: str, key: str, value: object, low: int, high: int) -> i
 def refused(owner: str, config: object, key: str, reason: str) -> SettingError:
     """The :class:`SettingError` for ``config.key`` (its current value), for checks that are not numbers."""
     return SettingError(owner, key, getattr(config, key), reason)
+
+
+def check_argument(
+    device: str,
+    quantity: str,
+    value: object,
+    *,
+    unit: str = "",
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+) -> float:
+    """A command argument as a float if it is a finite real number within the bounds, else
+    :class:`InvalidValueError` (``"not a real number"``, ``"not finite"``, ``"must be > 0"``)."""
+    number = real_number(value)
+    if number is None:
+        raise InvalidValueError(device, quantity, value, "not a real number")
+    if not math.isfinite(number):
+        raise InvalidValueError(device, quantity, value, "not finite")
+    problem = bound_problem(number, unit=unit, gt=gt, ge=ge, le=le, lt=lt)
+    if problem:
+        raise InvalidValueError(device, quantity, value, problem)
+    return number
+
+
+def check_count(device: str, quantity: str, value: object) -> int:
+    """A count argument (``max_samples``) as an int if it is an integer >= 1, else
+    :class:`InvalidValueError`."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise InvalidValueError(device, quantity, value, "must be an integer >= 1")
+    return int(value)
+
+
+def check_timeout(device: str, value: object, quantity: str = "timeout_s") -> float:
+    """A wait in seconds (a command argument): finite and >= 0, else :class:`InvalidValueError`."""
+    return check_argument(device, quantity, value, ge=0.0)

@@ -11,12 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.ratings import RATED_NORMAL_FORCE_N
 from rigctl.model.params import ParameterError
 
-MAX_NORMAL_FORCE_N = 800.0
-"""This rig's normal stage maximum load (paper Sec. 2.1). It bounds commands to this rig (the
-simulated rig, ``rigctl simulate``), never a model of measured data: a record from another rig
-(a 20 MPa rock biax, a 0.3 N spring-slider) is simulated at its own scale."""
+MAX_NORMAL_FORCE_N = RATED_NORMAL_FORCE_N
+"""This rig's normal stage maximum load (paper Sec. 2.1; written once, in :mod:`drivers.ratings`).
+It bounds commands to this rig (the simulated rig, ``rigctl simulate``), never a model of measured
+data: a record from another rig (a 20 MPa rock biax, a 0.3 N spring-slider) is simulated at its
+own scale."""
 
 
 def _finite(name: str, value: float) -> float:
