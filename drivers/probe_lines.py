@@ -23,7 +23,7 @@ _VALUE = re.compile(r"[+-][0-9]{1,6}\.[0-9]{4}")
 _NUMBER = re.compile(r"[0-9]{1,6}(\.[0-9]{1,6})?")
 _SEQ = re.compile(r"[0-9]{1,10}")
 _CODE = re.compile(r"[0-9]{2}")
-COMMANDS = ("ID", "RG", "MS", "ZR", "ST", "SP")  # the probe protocol's commands (docs/protocols.md)
+COMMANDS = ("ID", "RG", "MS", "ZR", "ST", "SP", "MV")  # the probe protocol's commands (docs/protocols.md)
 
 
 def format_command(command: str, *args: str) -> bytes:

@@ -31,6 +31,7 @@ from drivers.probe_lines import (
     TERMINATOR,
     UINT32_MAX,
     format_command,
+    format_value,
     parse_ack,
     parse_identity,
     parse_measurement,
@@ -51,9 +52,13 @@ class ProbeConfig:
     retries: int = 1
     stream_silence_s: float = 0.5
     stream_buffer: int = 65536
+    mount_travel_m: float = 0.0
+    """Travel of a motorised mount driven through the probe's ``MV`` command (centred on where it
+    starts); 0: the mount is manual and :meth:`SerialProbe.move_mount` is refused."""
 
     def __post_init__(self) -> None:
         owner = f"probe {self.name!r}"
+        check_number(owner, "mount_travel_m", self.mount_travel_m, unit="m", ge=0.0, le=0.2)
         if not isinstance(self.url, str) or not self.url:
             raise SettingError(owner, "url", self.url, "must be a pyserial URL or port name")
         for key in ("timeout_s", "stream_silence_s"):
@@ -132,9 +137,17 @@ class SerialProbe(DisplacementProbe):
         self._check_idle("identify")
         return parse_identity(self._transact("ID"), self.name)
 
+    @property
+    def mount_travel_m(self) -> float:
+        """Travel of the motorised mount (``ProbeConfig.mount_travel_m``; 0: manual)."""
+        return self._config.mount_travel_m
+
     # hooks --------------------------------------------------------------------------------------
     def _do_zero(self) -> None:
         parse_ack(self._transact("ZR"), "ZR", self.name)
+
+    def _do_move_mount(self, distance_m: float) -> None:
+        parse_ack(self._transact("MV", format_value(distance_m), retries=0), "MV", self.name)
 
     def _do_read_m(self) -> float:
         return parse_measurement(self._transact("MS"), self.name)
@@ -190,18 +203,20 @@ class SerialProbe(DisplacementProbe):
             self._range = parse_range(self._transact("RG"), self.name)
         return self._range
 
-    def _transact(self, command: str, *args: str) -> bytes:
-        """Send one command (one in flight), return its reply line; one retry on silence."""
+    def _transact(self, command: str, *args: str, retries: int | None = None) -> bytes:
+        """Send one command (one in flight), return its reply line; ``retries`` (default: the
+        configuration's) more tries on silence. A move is never retried: it may have been made."""
         line = format_command(command, *args)
         cfg = self._config
+        tries = 1 + (cfg.retries if retries is None else retries)
         with self._command_lock:
-            for _attempt in range(1 + cfg.retries):
+            for _attempt in range(tries):
                 self._clear_replies()
                 self._write(line)
                 reply = self._await_reply(cfg.timeout_s)
                 if reply is not None:
                     return reply
-        raise DeviceTimeout(self.name, cfg.timeout_s * (1 + cfg.retries), detail=command)
+        raise DeviceTimeout(self.name, cfg.timeout_s * tries, detail=command)
 
     def _write(self, data: bytes) -> None:
         self._raise_on_io_error()

@@ -280,10 +280,12 @@ def _wire(
         psim = ProbeSim(rig, index, faults=faults[key]).start()
         closers.append(psim.stop)
         servers.append(psim)
+        travel = rig.probes[index].spec.mount_travel_m  # the simulated mount is motorised
         if settings.probes is not None:
-            pcfg = dataclasses.replace(settings.probes[index], url=psim.path)
+            pcfg = dataclasses.replace(settings.probes[index], url=psim.path,
+                                       mount_travel_m=travel)
         else:
-            pcfg = ProbeConfig(name=key, url=psim.path)
+            pcfg = ProbeConfig(name=key, url=psim.path, mount_travel_m=travel)
         probe = SerialProbe(pcfg)
         closers.append(probe.close)
         probes.append(probe)

@@ -88,8 +88,8 @@ class DaqSignals:
             force = self.sensor.counts(interp(t_s, s, s.ft_N), interp(t_s, s, s.fn_N))
         sp = self.spec
         volts = np.zeros((t_s.shape[0], 3))
-        volts[:, 0] = self.rig.probes[0].analog_V(interp(t_s, s, s.d1_m), sp.probe_m_per_volt)
-        volts[:, 1] = self.rig.probes[1].analog_V(interp(t_s, s, s.d2_m), sp.probe_m_per_volt)
+        volts[:, 0] = self.rig.probes[0].analog_V(interp(t_s, s, s.d1_m), sp.probe_m_per_volt, t_s)
+        volts[:, 1] = self.rig.probes[1].analog_V(interp(t_s, s, s.d2_m), sp.probe_m_per_volt, t_s)
         volts += self._rng.standard_normal(volts.shape) * sp.analog_noise_rms_V
         analog = to_int16_counts(volts, sp.volts_per_count)
         if stuck:

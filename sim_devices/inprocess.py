@@ -256,9 +256,17 @@ class InProcessProbe(DisplacementProbe):
     def _stick(self, values: np.ndarray) -> np.ndarray:
         return self._stuck.hold_array(values)
 
+    @property
+    def mount_travel_m(self) -> float:
+        return self.head.spec.mount_travel_m
+
     def _do_zero(self) -> None:
         self._check_alive("ZR")
         self.head.zero_at(float(self.rig.probe_ideal_m(self.index)[0]))
+
+    def _do_move_mount(self, distance_m: float) -> None:
+        self._check_alive("MV")
+        self.rig.move_probe_mount(self.index, distance_m)
 
     def _do_read_m(self) -> float:
         self._check_alive("MS")
@@ -291,8 +299,8 @@ class InProcessProbe(DisplacementProbe):
             cursor.skip_lost(lost)
             return _no_samples()
         cursor.consume(t.shape[0])
-        values = self._stick(self.head.readings_m(interp(t, s, s.d1_m if self.index == 0
-                                                         else s.d2_m)))
+        values = self._stick(self.head.readings_m(
+            interp(t, s, s.d1_m if self.index == 0 else s.d2_m), t))
         host = np.array([self.rig.clock.host_ns_at(float(x)) for x in t], dtype=np.int64)
         return ProbeSamples(n0 + np.arange(t.shape[0], dtype=np.int64), values, host)
 

@@ -9,6 +9,8 @@ a time, in order:
 - ``MS`` -> ``MS,+0012.3450`` (quantised to 0.019 um) or ``MS,+OVER`` / ``MS,-OVER`` beyond +-37 um
   of the zero; ``ER,MS,03`` while streaming;
 - ``ZR`` -> ``ZR`` (the current gap becomes the zero; shared with the probe's analog output);
+- ``MV,<um>`` -> ``MV`` (the motorised mount moves by that many micrometres towards the target, the
+  readings drop by it; ``ER,MV,02`` beyond the mount's travel or for a manual mount);
 - ``ST,<rate_hz>`` -> ``ST``, then ``D,<seq>,<value>`` lines for samples at ``t0 + seq / rate`` of
   the rig's clock (rate 1 .. the rig's sample rate, else ``ER,ST,02``); ``SP`` -> ``SP``;
 - anything else -> ``ER,<cmd>,01``; a malformed argument -> ``ER,<cmd>,02``.
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import select
 import tty
@@ -32,7 +35,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from drivers.probe_lines import MAX_LINE_BYTES, TERMINATOR, format_value
+from drivers.errors import OverRangeError, ProtocolError
+from drivers.probe_lines import MAX_LINE_BYTES, TERMINATOR, format_value, parse_value_m
 from sim_devices.faults import Faults, StuckReading
 from sim_devices.sample_ring import SamplesLostError
 from sim_devices.sensors import ProbeHead
@@ -126,9 +130,9 @@ class ProbeSim(SimService):
             return "ER,??,01"
         fields = text.split(",")
         cmd, args = fields[0], fields[1:]
-        if cmd not in ("ID", "RG", "MS", "ZR", "ST", "SP"):
+        if cmd not in ("ID", "RG", "MS", "ZR", "ST", "SP", "MV"):
             return f"ER,{cmd[:8]},01"
-        if cmd != "ST" and args:
+        if cmd not in ("ST", "MV") and args:
             return f"ER,{cmd},02"
         spec = self.head.spec
         if cmd == "ID":
@@ -145,7 +149,20 @@ class ProbeSim(SimService):
         if cmd == "ZR":
             self.head.zero_at(self._ideal_now())
             return "ZR"
+        if cmd == "MV":
+            return self._move_mount(args)
         return self._start_stream(args)
+
+    def _move_mount(self, args: list[str]) -> str:
+        try:
+            distance_m = parse_value_m(args[0]) if len(args) == 1 else math.nan
+        except (ProtocolError, OverRangeError):
+            return "ER,MV,02"
+        try:
+            self.rig.move_probe_mount(self.index, distance_m)
+        except ValueError:  # not finite, beyond the travel, or a manual mount (travel 0)
+            return "ER,MV,02"
+        return "MV"
 
     def _start_stream(self, args: list[str]) -> str:
         if len(args) != 1 or not args[0].isdigit():
@@ -177,7 +194,7 @@ class ProbeSim(SimService):
             cursor.skip_lost(lost)
             return
         ideal = interp(t, s, s.d1_m if self.index == 0 else s.d2_m)
-        values = self._apply_stuck(self.head.readings_m(ideal))
+        values = self._apply_stuck(self.head.readings_m(ideal, t))
         for i in range(t.shape[0]):
             self._send_line(f"D,{(seq0 + i) & 0xFFFFFFFF},{format_value(float(values[i]))}")
         cursor.consume(t.shape[0])

@@ -14,6 +14,13 @@ Probes (MTI-2100 with RS2032R, Han et al. 2022, Section 2.1): range 74 um centre
 minus the zero set by ``ZR``, plus Gaussian noise, quantised to the resolution. Beyond +-37 um of the
 zero the probe reports over-range (never a clipped number); its analog output then goes to the
 rail, +-10 V (full-scale counts on the DAQ), which no in-range reading can produce.
+
+Mount: each probe sits in a holder on a motorised micrometre drive along its axis (a choice: the
+paper does not describe the holders). A fibre-optic probe's range is fixed about its stand-off, so
+re-zeroing the electronics cannot bring a target that left the range back; moving the probe can.
+Moving the mount by ``m`` towards the target shortens the gap by ``m``: every reading from that
+instant on is ``m`` lower. The moves are kept with their rig times (:meth:`ProbeHead.move_mount`), so
+a device reading the rig's history late still sees each sample with the mount where it was then.
 """
 
 from __future__ import annotations
@@ -109,20 +116,28 @@ class ProbeSpec:
     resolution_m: float = 0.019e-6
     noise_rms_m: float = 0.005e-6
     mount_offset_m: float = 0.0
+    mount_travel_m: float = 25e-3
+    """Travel of the probe's motorised mount, centred on where it starts (a 25 mm micrometre
+    drive, a choice); 0 = a manual mount the rig cannot move."""
 
     def __post_init__(self) -> None:
         if not (self.range_m > 0 and self.resolution_m > 0 and self.noise_rms_m >= 0):
             raise ValueError("probe range and resolution must be positive, noise >= 0")
+        if not (self.mount_travel_m >= 0 and math.isfinite(self.mount_travel_m)):
+            raise ValueError("probe mount travel must be finite and >= 0")
 
 
 class ProbeHead:
-    """A probe's physical state: where its zero is. Shared by its serial and analog outputs."""
+    """A probe's physical state: where its zero is and where its mount has been moved (with the rig
+    time of each move). Shared by its serial and analog outputs."""
 
     def __init__(self, spec: ProbeSpec | None = None, seed: int = 0) -> None:
         self.spec = spec or ProbeSpec()
         self._zero_m = 0.0
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()
+        self._move_t_s: list[float] = [-math.inf]
+        self._mount_m: list[float] = [0.0]
 
     @property
     def half_range_m(self) -> float:
@@ -132,24 +147,63 @@ class ProbeHead:
     def zero_m(self) -> float:
         return self._zero_m
 
+    @property
+    def mount_m(self) -> float:
+        """Where the mount is now, from where it started [m] (positive: towards the target)."""
+        with self._lock:
+            return self._mount_m[-1]
+
+    def move_mount(self, distance_m: float, after_t_s: float) -> None:
+        """Move the mount by ``distance_m`` (positive: towards the target, the readings drop by it),
+        in place for every sample later than rig time ``after_t_s``. A move beyond the mount's
+        travel raises ValueError and nothing moves (never clipped)."""
+        d = float(distance_m)
+        t = float(after_t_s)
+        if not (math.isfinite(d) and math.isfinite(t)):
+            raise ValueError(f"mount move must be finite, got {distance_m!r} at {after_t_s!r}")
+        half = 0.5 * self.spec.mount_travel_m
+        with self._lock:
+            target = self._mount_m[-1] + d
+            if abs(target) > half:
+                raise ValueError(f"mount move to {target * 1e6:+.1f} um is beyond its travel "
+                                 f"of +-{half * 1e6:.0f} um")
+            if t < self._move_t_s[-1]:
+                raise ValueError("mount moves must come in time order")
+            self._move_t_s.append(t)
+            self._mount_m.append(target)
+
+    def _mount_at(self, t_s: FloatArray | None, shape: tuple[int, ...]) -> FloatArray:
+        with self._lock:
+            if t_s is None:
+                return np.full(shape, self._mount_m[-1])
+            times = np.asarray(self._move_t_s)
+            mounts = np.asarray(self._mount_m)
+        idx = np.searchsorted(times, np.asarray(t_s, dtype=np.float64), side="left") - 1
+        return mounts[np.maximum(idx, 0)]
+
     def zero_at(self, ideal_m: float) -> None:
         """``ZR``: the current gap becomes the zero."""
-        self._zero_m = float(ideal_m) + self.spec.mount_offset_m
+        self._zero_m = float(ideal_m) + self.spec.mount_offset_m - self.mount_m
 
-    def readings_m(self, ideal_m: FloatArray) -> FloatArray:
-        """Quantised readings relative to the zero; +inf / -inf where over range."""
+    def readings_m(self, ideal_m: FloatArray, t_s: FloatArray | None = None) -> FloatArray:
+        """Quantised readings relative to the zero at rig times ``t_s`` (None: now, the mount where
+        it is); +inf / -inf where over range."""
         ideal = np.asarray(ideal_m, dtype=np.float64)
+        mount = self._mount_at(t_s, ideal.shape)
         with self._lock:
             noise = self._rng.standard_normal(ideal.shape) * self.spec.noise_rms_m
-        rel = ideal + self.spec.mount_offset_m - self._zero_m + noise
+        rel = ideal + self.spec.mount_offset_m - mount - self._zero_m + noise
         res = self.spec.resolution_m
         q = np.rint(rel / res) * res + 0.0  # + 0.0: no negative zero
         over = np.abs(rel) > self.half_range_m
         return np.where(over, np.copysign(np.inf, rel), q)
 
-    def analog_V(self, ideal_m: FloatArray, m_per_volt: float) -> FloatArray:
-        """Analog output [V]; over range it sits at the +-10 V rail."""
-        r = self.readings_m(ideal_m)
+    def analog_V(
+        self, ideal_m: FloatArray, m_per_volt: float, t_s: FloatArray | None = None
+    ) -> FloatArray:
+        """Analog output [V] at rig times ``t_s`` (None: now); over range it sits at the +-10 V
+        rail."""
+        r = self.readings_m(ideal_m, t_s)
         return np.where(np.isfinite(r), r / m_per_volt, np.copysign(10.0, r))
 
 

@@ -432,6 +432,16 @@ class VirtualRig(SimService):
         """Block until simulated time ``t_s`` is reached."""
         return self.wait_for_sample(math.ceil(t_s * self.config.sample_rate_hz - 1e-9), timeout_s)
 
+    def move_probe_mount(self, index: int, distance_m: float) -> float:
+        """Move probe ``index``'s mount by ``distance_m`` (positive: towards its target, the readings
+        drop by it) at the rig's current time, after catching up with the clock (as a stage command
+        is applied); returns that rig time. ValueError beyond the mount's travel (nothing moves)."""
+        with self._cond:
+            self._sync_locked()
+            t = self.t_s
+            self.probes[index].move_mount(distance_m, after_t_s=t)
+            return t
+
     def probe_ideal_m(self, index: int, samples: RigSamples | None = None) -> NDArray[np.float64]:
         """The model's ideal reading of probe ``index`` (0 = D1, 1 = D2) for samples / now."""
         if samples is None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from abc import abstractmethod
 from typing import NamedTuple
 
-from drivers.errors import DeviceStateError
+from drivers.errors import DeviceStateError, LimitError, NotSupportedError
 from drivers.interfaces.common import Device, FloatArray, IntArray
 from drivers.validate import check_argument, check_count, check_timeout
 
@@ -33,11 +33,16 @@ class DisplacementProbe(Device):
         probe.start_stream(1000.0)
         samples = probe.read_stream(1000, timeout_s=1.0)   # seq, values_m, host_ns
         probe.stop_stream()
+        probe.move_mount(30e-6)     # a motorised mount: the readings drop by 30 um from now on
+
+    A probe's range is fixed about its stand-off: :meth:`zero` re-references the reading, only
+    moving the probe (:meth:`move_mount`) brings a target that left the range back into it.
     """
 
     def __init__(self, name: str) -> None:
         super().__init__(name)
         self._streaming = False
+        self._mount_m = 0.0
 
     @property
     @abstractmethod
@@ -83,6 +88,35 @@ class DisplacementProbe(Device):
         self._check_open()
         self._do_stop_stream()
         self._streaming = False
+
+    @property
+    def mount_travel_m(self) -> float:
+        """Travel of the probe's motorised mount, centred on where it started [m]; 0 (the default)
+        for a manual mount, which :meth:`move_mount` refuses."""
+        return 0.0
+
+    @property
+    def mount_m(self) -> float:
+        """Where the mount is, from where it started [m] (the sum of the moves made)."""
+        return self._mount_m
+
+    def move_mount(self, distance_m: float) -> None:
+        """Move the probe towards its target by ``distance_m`` (negative: away): every reading from
+        then on is ``distance_m`` lower. A move beyond the mount's travel raises LimitError and
+        nothing moves; a manual mount raises NotSupportedError."""
+        self._check_idle("move_mount")
+        d = check_argument(self.name, "distance_m", distance_m, unit="m")
+        half = 0.5 * self.mount_travel_m
+        if half <= 0:
+            raise NotSupportedError(self.name, "move_mount (the probe's mount is manual)")
+        target = self._mount_m + d
+        if abs(target) > half:
+            raise LimitError(self.name, "mount_m", target, half if target > 0 else -half, "m")
+        self._do_move_mount(d)
+        self._mount_m = target
+
+    def _do_move_mount(self, distance_m: float) -> None:
+        raise NotSupportedError(self.name, "move_mount")
 
     def _check_idle(self, command: str) -> None:
         self._check_open()
