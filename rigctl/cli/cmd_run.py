@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from experiments.runner import Runner
     from rigctl.config import adapters
     from rigctl.config.loader import load_effective_config, to_toml
+    from rigctl.io.outputs import check_output_file
     from rigctl.rigs import open_rig, parse_speed
     from rigctl.storage.layout import RunDescription
 
@@ -92,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
                                  "does not exist (create it, or correct the configuration)")
             folder.mkdir()
         out = folder / f"{protocol.name}_{stamp}.h5"
+    if out is not None:  # the one output policy, before the rig opens (rigctl/io/outputs.py)
+        check_output_file(out, "--out", force=args.force)
     with open_rig(backend, config, speed) as rig:
         camera = None if args.no_camera else adapters.camera_layout(rig.config)
         desc = RunDescription(

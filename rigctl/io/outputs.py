@@ -4,7 +4,9 @@ Checked before any work, so that a refusal never comes after a fit or a run:
 
 1. The parent folder must exist and be writable (no command creates a tree of folders from a
    typo: ``/nonexistent/dir/runs`` is refused, not made).
-2. An existing file is refused unless the user said ``--force``.
+2. An existing file is refused unless the user said ``--force``, and ``--force`` replaces only a
+   regular file: a device (``/dev/null``), a pipe, a socket or a link to one is refused whatever
+   ``--force`` says (replacing it would delete the device node).
 3. A file another process holds open for writing (a ``rigctl run`` recording it) is never
    replaced, whatever ``--force`` says.
 4. A report folder may exist (its files are replaced) but must be a folder.
@@ -16,6 +18,7 @@ HDF5 writer's own temporary file), so a failed command leaves the old file intac
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 
 import psutil
@@ -49,11 +52,31 @@ def writer_of(path: Path) -> str | None:
     return None
 
 
+_KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+          (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"))
+
+
+def not_a_regular_file(path: Path) -> str | None:
+    """What ``path`` is when it exists and is not a regular file or a folder (``"a character
+    device"``, ...; a symbolic link is judged by its target), else None."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
 def check_output_file(path: Path, option: str, *, force: bool = False) -> None:
     """Refuse (UsageError naming ``option``) an output file the policy does not allow."""
     _check_parent(path, option)
     if path.is_dir():
         raise UsageError(f"{option} {path} is a folder, not a file")
+    kind = not_a_regular_file(path)
+    if kind is not None:
+        raise UsageError(f"{option} {path} is {kind}, not a regular file; it is never replaced, "
+                         "whatever --force says (choose a file name)")
     if not path.exists():
         return
     holder = writer_of(path)

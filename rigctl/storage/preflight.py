@@ -64,6 +64,11 @@ def check_output_path(
         raise StorageError(f"{str(folder)!r} is not a folder", path=target)
     if target.is_dir():
         raise StorageError("is a folder, not a file name", path=target)
+    from rigctl.io.outputs import not_a_regular_file
+
+    kind = not_a_regular_file(target)
+    if kind is not None:  # /dev/null: replacing it would delete the device node
+        raise StorageError(f"is {kind}, not a regular file; it is never replaced", path=target)
     if target.exists() and not overwrite:
         raise StorageError("already exists (refusing to overwrite a run file)", path=target)
     if target.exists():

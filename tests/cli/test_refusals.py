@@ -66,3 +66,21 @@ def test_a_reader_that_goes_away_is_not_a_traceback() -> None:
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 0
     assert "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_force_onto_a_device_is_refused_and_the_node_kept(
+        tmp_path, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    """`run --out <a character device> --force`: one line before any work; the node stays."""
+    import os
+    import stat
+
+    node = tmp_path / "null"
+    try:
+        os.mknod(node, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # a /dev/null of our own
+    except PermissionError:
+        pytest.skip("creating a device node needs CAP_MKNOD")
+    argv = ["run", "tlre", "--speed", "max", "--no-camera", "--out", str(node), "--force"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a character device, not a regular file" in err, err
+    assert stat.S_ISCHR(os.stat(node).st_mode)
