@@ -12,6 +12,10 @@
   load is released (the normal stage goes back to where it was before contact; after a force-limit
   trip that retraction is the one motion allowed). The run file is closed with status ``aborted`` or
   ``failed`` and the error text; everything recorded stays.
+* **Safe state after the last step** of a completed run too (:meth:`Runner._safe_end`): a protocol
+  that leaves the normal load on (a protocol file without a release) has it released, recorded
+  (marker ``safe_state``, before ``end``) and said; the dry run says so in the plan. A release that
+  cannot be confirmed fails the run.
 """
 
 from __future__ import annotations
@@ -28,9 +32,10 @@ from typing import Any
 from drivers.safety import ForceGuard, StaleReadingGuard
 from experiments.context import Controls, RigLimits, RunContext
 from experiments.errors import PlanError, ProtocolAborted
+from experiments.normal_load import CONTACT_N
 from experiments.params import resolve
 from experiments.protocols import PROTOCOLS, Protocol
-from experiments.steps import PlanState, Step
+from experiments.steps import POSITION_TOLERANCE_M, PlanState, Step
 from rigctl.acquisition import Acquisition, AcquisitionStats, RigDevices
 from rigctl.errors import InputError
 from rigctl.status import RunStatus
@@ -54,6 +59,9 @@ class Plan:
     protocol: str
     parameters: dict[str, Any]
     steps: tuple[PlannedStep, ...]
+    ends_loaded_N: float = 0.0
+    """Normal force the last step leaves on (0: the protocol releases it); the safe state after the
+    last step releases it."""
 
     @property
     def duration_s(self) -> float:
@@ -63,6 +71,9 @@ class Plan:
         lines = [f"protocol {self.protocol}: {len(self.steps)} steps, estimated "
                  f"{self.duration_s:.0f} s of rig time"]
         lines += [f"  {s.index:3d}. {s.description:<58} ~{s.estimate_s:8.1f} s" for s in self.steps]
+        if self.ends_loaded_N > 0:
+            lines.append(f"  then the safe state: the last step leaves Fn {self.ends_loaded_N:g} N "
+                         "on; the normal load is released after it")
         return "\n".join(lines)
 
 
@@ -90,7 +101,7 @@ def dry_run(
     for i, step in enumerate(steps, 1):
         est = step.plan(state, limits)
         planned.append(PlannedStep(i, step.describe(), est))
-    plan = Plan(protocol.name, params, tuple(planned))
+    plan = Plan(protocol.name, params, tuple(planned), ends_loaded_N=state.fn_N)
     if plan.duration_s > MAX_PLAN_S:
         longest = max(planned, key=lambda p: p.estimate_s)
         raise PlanError(
@@ -226,6 +237,7 @@ class Runner:
         status, error = RunStatus.COMPLETED, None
         problems: list[str] = []
         stats: AcquisitionStats | None = None
+        safe_done = False
         try:
             if self.on_acquisition is not None:
                 self.on_acquisition(acq)
@@ -245,7 +257,16 @@ class Runner:
                                   ctx.acq.t_s - t0, remaining)
                 step.run(ctx)
                 remaining -= planned.estimate_s
-            acq.mark("end", "protocol completed")
+            ctx.current_step = "the safe state after the last step"
+            problems = self._safe_end(ctx, stale)
+            safe_done = True  # done (or found incomplete): the finally below does not redo it
+            if problems:
+                status = RunStatus.FAILED
+                error = ("the protocol completed, but the safe state after its last step is "
+                         f"incomplete: {'; '.join(problems)}")
+                _log.critical("%s", error)
+            else:
+                acq.mark("end", "protocol completed")
         except ProtocolAborted as exc:
             status, error = RunStatus.ABORTED, str(exc) or "aborted"
         except BaseException as exc:
@@ -259,7 +280,7 @@ class Runner:
                 status = RunStatus.ABORTED
                 error = f"{self.controls.abort_reason or 'aborted'} (then {error})"
         finally:
-            if status != RunStatus.COMPLETED:
+            if status != RunStatus.COMPLETED and not safe_done:
                 problems = safe_state(ctx, error or status)
                 self._wait_released(ctx)
                 problems += _unreleased(ctx, acq.device_now_s(), stale)
@@ -273,6 +294,25 @@ class Runner:
             stats = acq.stop(status, error)
             guard_detach(self.devices.normal_stage, guard)
         return RunOutcome(status, error, self.out, plan, stats, time.monotonic() - t_wall, problems)
+
+    def _safe_end(self, ctx: RunContext, stale: StaleReadingGuard) -> list[str]:
+        """The safe state after the last step of a completed protocol; what could not be done.
+
+        The tangential stage is stopped; a normal load the protocol left on (the measured force, or
+        the normal stage still past where it was before contact) is released as on an abort and the
+        release checked on the force. Recorded either way (marker ``safe_state``)."""
+        with contextlib.suppress(Exception):  # it has arrived; a stop is the belt and braces
+            ctx.tangential.stop()
+        left_on = _load_left_on(ctx)
+        if left_on is None:
+            ctx.acq.mark("safe_state", "end of protocol: the normal load was already released")
+            return []
+        _log.warning("protocol %s ended with the normal load on (%s): the safe state releases it",
+                     self.protocol.name, left_on)
+        problems = safe_state(ctx, f"end of protocol: the last step left the normal load on "
+                                   f"({left_on}); released")
+        self._wait_released(ctx)
+        return problems + _unreleased(ctx, ctx.acq.device_now_s(), stale)
 
     def _wait_released(self, ctx: RunContext) -> None:
         """Give the retraction RELEASE_WAIT_S of device time to finish (the acquisition keeps
@@ -304,6 +344,26 @@ RELEASED_MAX_N = 5.0
 """|Fn| above this after the safe state's release means the load is still on the specimen."""
 RELEASE_CHECK_S = 0.1
 """Device time of force data after the release that the check averages."""
+
+
+def _load_left_on(ctx: RunContext) -> str | None:
+    """What says the normal load is still on after the last step (None: released): the force
+    measured after the step ended above the contact threshold, or the normal stage past where it was
+    before contact."""
+    t_end_s = ctx.acq.device_now_s()
+    if math.isfinite(t_end_s):
+        ctx.acq.wait_until(t_end_s + RELEASE_CHECK_S, RELEASE_WAIT_HOST_S)
+    fn = ctx.acq.mean("fn_N", RELEASE_CHECK_S)
+    if not math.isfinite(fn) or fn > CONTACT_N:
+        return f"Fn {fn:.1f} N" if math.isfinite(fn) else "no force reading"
+    try:
+        z = ctx.normal.position_m()
+    except Exception as exc:
+        return f"the normal stage's position unknown: {exc}"
+    if ctx.z_retract_m is not None and z > ctx.z_retract_m + POSITION_TOLERANCE_M:
+        return (f"the normal stage {(z - ctx.z_retract_m) * 1e6:.0f} um past where it was before "
+                f"contact, Fn {fn:.1f} N")
+    return None
 
 
 def _unreleased(ctx: RunContext, t_release_s: float,
