@@ -20,6 +20,7 @@ once no data frame has arrived for ``stream_silence_s`` (0.5 s).
 from __future__ import annotations
 
 import contextlib
+import math
 import queue
 import threading
 import time
@@ -31,6 +32,7 @@ import can
 import numpy as np
 
 from drivers.can_frames import (
+    FULL_SCALE_COUNTS,
     Command,
     NodeIds,
     Reply,
@@ -66,12 +68,21 @@ class CanDaqConfig:
     node_id: int = 1
     rate_hz: float = 1024.0
     force_N_per_count: float = 0.02
+    force_range_N: float = math.inf
+    """The force sensor's rated range [N]; the driver's :attr:`CanDaq.force_range_N` is the lower of
+    it and the wire's full scale (``FULL_SCALE_COUNTS * force_N_per_count``)."""
     volts_per_count: float = 10.0 / 32768.0
     command_timeout_s: float = 0.3
     command_retries: int = 1
     stream_silence_s: float = 0.5
     rx_queue_size: int = 8192
     channel_map: ChannelMap = field(default_factory=ChannelMap)
+
+    @property
+    def saturation_N(self) -> float:
+        """Where a force reading saturates: the lower of :attr:`force_range_N` and the wire's full
+        scale (``FULL_SCALE_COUNTS * force_N_per_count``, 655.34 N at 0.02 N/count)."""
+        return min(self.force_range_N, FULL_SCALE_COUNTS * self.force_N_per_count)
 
     def __post_init__(self) -> None:
         owner = f"daq {self.name!r}"
@@ -85,6 +96,8 @@ class CanDaqConfig:
             ("stream_silence_s", "s"),
         ):
             check_number(owner, key, getattr(self, key), unit=unit, gt=0.0)
+        if self.force_range_N != math.inf:
+            check_number(owner, "force_range_N", self.force_range_N, unit="N", gt=0.0)
         if self.rate_hz != int(self.rate_hz) or self.rate_hz > MAX_RATE_HZ:
             raise refused(owner, self, "rate_hz", f"must be a whole number of Hz up to {MAX_RATE_HZ}")
         for key, low, high in (("command_retries", 0, 3), ("rx_queue_size", 16, 1 << 22)):
@@ -190,6 +203,11 @@ class CanDaq(Daq):
     def config(self) -> CanDaqConfig:
         """The configuration this DAQ was built from."""
         return self._config
+
+    @property
+    def force_range_N(self) -> float:
+        """The configured sensor range, at most the wire's full scale (:attr:`CanDaqConfig.saturation_N`)."""
+        return self._config.saturation_N
 
     @property
     def dropped_samples(self) -> int:

@@ -22,6 +22,9 @@ ANALOG_BASE_ID = 0x280  # analog frames on 0x280 + node (TPDO2 range)
 COMMAND_BASE_ID = 0x600  # commands to 0x600 + node (SDO request range)
 REPLY_BASE_ID = 0x580  # replies from 0x580 + node (SDO response range)
 COUNTER_MODULUS = 1 << 16  # the sample counter is a uint16 in each frame and wraps
+FULL_SCALE_COUNTS = 32767
+"""Largest value an int16 force or analog count can carry: a reading there is saturated (the
+converter's full scale; -32768 the other way), so a force's wire range is this times its scale."""
 _DATA = struct.Struct("<Hhhh")
 
 

@@ -159,14 +159,22 @@ class SettingError(InputError):
 class ForceLimitError(DeviceError):
     """|Fn| exceeded the force limit: the guarded stage was emergency-stopped."""
 
-    def __init__(self, device: str, force_N: float, limit_N: float) -> None:
+    def __init__(self, device: str, force_N: float, limit_N: float,
+                 *, range_N: float | None = None) -> None:
         self.force_N = force_N
         self.limit_N = limit_N
-        shown = "non-finite" if not math.isfinite(force_N) else f"|Fn| = {abs(force_N):.6g} N"
+        self.range_N = range_N
+        """The force sensor's range when the trip was a saturated reading (at least this much)."""
+        if range_N is not None:
+            what = (f"the force sensor is saturated: |Fn| >= {range_N:.6g} N, its range (at least "
+                    f"this much; the limit is {limit_N:.6g} N)")
+        else:
+            shown = "non-finite" if not math.isfinite(force_N) else f"|Fn| = {abs(force_N):.6g} N"
+            what = f"{shown} exceeds {limit_N:.6g} N"
         super().__init__(
             device,
-            f"force limit tripped: {shown} exceeds {limit_N:.6g} N; emergency stop sent, "
-            "commands refused until the guard is reset",
+            f"force limit tripped: {what}; emergency stop sent, commands refused until the guard "
+            "is reset",
         )
 
 

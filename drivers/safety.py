@@ -12,8 +12,9 @@ stage moving. ``stop``, ``emergency_stop``, ``disable`` and reads are never refu
   stage that fails to answer does not keep the others from being stopped). Motion commands are
   then refused with :class:`~drivers.errors.EmergencyStopActive` until ``reset()``.
 * :class:`ForceGuard` - the acquisition layer feeds it normal-force readings; when |Fn| exceeds the
-  limit (default 800 N, the rig's maximum load) or a reading is not finite (the guard can no longer
-  vouch for the load), it emergency-stops the guarded stage, records a
+  limit (default 800 N, the rig's maximum load), a reading is saturated (at the force sensor's
+  range: it reads "at least this much", so the guard cannot see past it) or a reading is not finite
+  (the guard can no longer vouch for the load), it emergency-stops the guarded stage, records a
   :class:`~drivers.errors.ForceLimitError`, and refuses that stage's motion commands until reset.
 """
 
@@ -183,12 +184,20 @@ def default_emergency_stop() -> EmergencyStop:
     return _DEFAULT
 
 
+SATURATION_RTOL = 1e-9
+"""A reading within this relative distance of the sensor's range is at the range (saturated): the
+range and the readings are the same count times the same scale, so only rounding separates them."""
+
+
 class ForceGuard:
-    """Emergency-stops a (normal) stage when |Fn| exceeds ``limit_N``; refuses its commands after.
+    """Emergency-stops a (normal) stage when |Fn| exceeds ``limit_N`` or reaches the force sensor's
+    range ``range_N`` (a saturated reading means "at least this much"); refuses its commands after.
 
     Feed it every block of normal-force readings (``feed(fn_N)``, from any thread). The guard
-    attaches itself as an interlock of ``stage``. ``also_trigger`` optionally latches an
-    :class:`EmergencyStop` as well (stopping every stage, e.g. the tangential one too).
+    attaches itself as an interlock of ``stage``. ``range_N`` is the DAQ's
+    :attr:`~drivers.interfaces.Daq.force_range_N` (infinite: a sensor that cannot saturate).
+    ``also_trigger`` optionally latches an :class:`EmergencyStop` as well (stopping every stage,
+    e.g. the tangential one too).
     """
 
     def __init__(
@@ -196,12 +205,17 @@ class ForceGuard:
         stage: GuardedStage,
         limit_N: float = DEFAULT_FORCE_LIMIT_N,
         *,
+        range_N: float = math.inf,
         also_trigger: EmergencyStop | None = None,
     ) -> None:
         if not (isinstance(limit_N, int | float) and math.isfinite(limit_N) and limit_N > 0):
             raise ValueError(f"force limit must be a finite positive number of N: {limit_N!r}")
+        if not (isinstance(range_N, int | float) and range_N > 0) or math.isnan(range_N):
+            raise ValueError(f"force sensor range must be a positive number of N: {range_N!r}")
         self._stage = stage
         self._limit_N = float(limit_N)
+        self._range_N = float(range_N)
+        self._saturated_N = self._range_N * (1.0 - SATURATION_RTOL)
         self._also_trigger = also_trigger
         self._lock = threading.Lock()
         self._trip: ForceLimitError | None = None
@@ -213,6 +227,16 @@ class ForceGuard:
     def limit_N(self) -> float:
         """The force limit in newtons (applies to |Fn|)."""
         return self._limit_N
+
+    @property
+    def range_N(self) -> float:
+        """The force sensor's range [N]: a reading of |Fn| at it is saturated and trips the guard."""
+        return self._range_N
+
+    @property
+    def trips_above_N(self) -> float:
+        """Where the guard trips: the lower of the limit and the sensor's range."""
+        return min(self._limit_N, self._range_N)
 
     @property
     def tripped(self) -> bool:
@@ -234,20 +258,29 @@ class ForceGuard:
         if values.size == 0:
             return None
         ceiling = self._release_ceiling_N
-        bad = ~np.isfinite(values) | (np.abs(values) > (self._limit_N if ceiling is None else ceiling))
+        size = np.abs(values)
+        if ceiling is None:
+            # a saturated reading is at least the range: past it the guard would be blind
+            saturated = size >= self._saturated_N
+            bad = ~np.isfinite(values) | (size > self._limit_N) | saturated
+        else:  # a release starts where the trip was, saturated perhaps: only its ceiling counts
+            saturated = np.zeros(values.shape, dtype=bool)
+            bad = ~np.isfinite(values) | (size > ceiling)
         if not bad.any():
             if ceiling is not None and bool(
-                    np.all(np.abs(values) <= self._limit_N * (1.0 - self._release_margin))):
+                    np.all(size <= self.trips_above_N * (1.0 - self._release_margin))):
                 with self._lock:
                     # released (clearly below the limit, not hovering at it): back to the normal
                     # limit; at the limit itself noise would re-trip and stop the release
                     self._release_ceiling_N = None
             return None
-        worst = float(values[int(np.argmax(bad))])
+        first = int(np.argmax(bad))
+        worst = float(values[first])
+        range_N = self._range_N if bool(saturated[first]) and math.isfinite(worst) else None
         with self._lock:
             if self._trip is not None:
                 return None
-            self._trip = ForceLimitError(self._stage.name, worst, self._limit_N)
+            self._trip = ForceLimitError(self._stage.name, worst, self._limit_N, range_N=range_N)
         _log.critical("%s", self._trip)
         try:
             self._stage.emergency_stop()
@@ -266,8 +299,9 @@ class ForceGuard:
     def allow_release(self, margin: float = 0.05) -> None:
         """Accept commands again for a load release after a trip.
 
-        The force is still above the limit when the release starts, so until a block of readings is
-        back below ``(1 - margin)`` times the limit the guard trips only above ``(1 + margin)`` times
+        The force is still above the limit (or saturated) when the release starts, so until a block
+        of readings is back below ``(1 - margin)`` times :attr:`trips_above_N` the guard trips only
+        above ``(1 + margin)`` times
         the larger of the limit and the force that tripped it (the hysteresis keeps a force hovering
         at the limit, with its noise, from re-tripping and stopping the release half-way): a
         release that does not lower the force (wrong direction, a
@@ -291,7 +325,7 @@ class ForceGuard:
         """Interlock hook: refuse motion commands of the guarded stage while tripped."""
         trip = self._trip
         if trip is not None and stage is self._stage:
-            raise ForceLimitError(trip.device, trip.force_N, trip.limit_N)
+            raise ForceLimitError(trip.device, trip.force_N, trip.limit_N, range_N=trip.range_N)
 
     def detach(self) -> None:
         """Stop guarding the stage (removes the interlock)."""

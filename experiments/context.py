@@ -39,6 +39,10 @@ class RigLimits:
     """Furthest the contact search may go without reading a contact (the expected contact)."""
     max_approach_m: float = math.inf
     """Furthest the normal stage may press past where it first read a contact."""
+    force_range_N: float = math.inf
+    """The force sensor's range (:attr:`drivers.interfaces.Daq.force_range_N`): a reading there is
+    saturated, so no force target may be above it. A :class:`~experiments.runner.Runner` lowers it
+    to its DAQ's own range."""
 
 
 class Controls:

@@ -74,6 +74,12 @@ class LoadNormal(Step):
             raise self.refuse(
                 f"peak normal force {peak:g} N exceeds the limit {limits.max_force_N:g} N"
             )
+        if peak > limits.force_range_N:
+            raise self.refuse(
+                f"peak normal force {peak:g} N is above the force sensor's range "
+                f"{limits.force_range_N:g} N (daq.force_range_N): a reading there is saturated, "
+                "so the force guard could not see the load past it"
+            )
         if not 0 < self.tolerance_N < self.target_N:
             raise self.refuse(f"tolerance {self.tolerance_N:g} N must be in (0, target)")
         normal = limits.normal

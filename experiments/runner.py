@@ -25,7 +25,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -191,7 +191,8 @@ class Runner:
         self.protocol = protocol
         self.params = params
         self.devices = devices
-        self.limits = limits
+        self.limits = replace(limits, force_range_N=min(limits.force_range_N,
+                                                         devices.daq.force_range_N))
         self.out = out
         self.daq_layout = daq_layout or DaqLayout(sample_rate_hz=devices.daq.rate_hz)
         self.camera_layout = camera_layout
@@ -224,7 +225,8 @@ class Runner:
                 flush_interval_s=self.flush_interval_s, expected_duration_s=plan.duration_s,
                 overwrite=self.overwrite,
             )
-        guard = ForceGuard(self.devices.normal_stage, self.force_limit_N)
+        guard = ForceGuard(self.devices.normal_stage, self.force_limit_N,
+                           range_N=self.limits.force_range_N)
         stale = StaleReadingGuard((self.devices.normal_stage, self.devices.tangential_stage),
                                   device=self.devices.daq.name)
         acq = Acquisition(

@@ -183,10 +183,14 @@ class OpenRig:
 
 
 def rig_limits(config: RigConfig) -> RigLimits:
-    """The limits the dry run checks a plan against: the same objects the stage drivers get."""
+    """The limits the dry run checks a plan against: the same objects the stage drivers get (the
+    force sensor's range as the DAQ driver takes it from the configuration)."""
+    from rigctl.config.adapters import daq_config
+
     n = config.normal_stage.limits
     return RigLimits(tangential=config.tangential_stage.limits, normal=n, max_force_N=n.max_force_N,
-                     contact_search_end_m=n.contact_search_end_m, max_approach_m=n.max_approach_m)
+                     contact_search_end_m=n.contact_search_end_m, max_approach_m=n.max_approach_m,
+                     force_range_N=daq_config(config).saturation_N)
 
 
 def parse_speed(text: str) -> float:

@@ -145,6 +145,10 @@ class InProcessDaq(Daq):
         self._rng = np.random.default_rng(seed + 5)
 
     @property
+    def force_range_N(self) -> float:
+        return self.spec.force_range_N
+
+    @property
     def dropped_samples(self) -> int:
         return self._dropped
 

@@ -56,6 +56,11 @@ class ForceSensorSpec:
         if self.probe_m_per_volt == 0 or not math.isfinite(self.probe_m_per_volt):
             raise ValueError("probe_m_per_volt must be finite and non-zero")
 
+    @property
+    def force_range_N(self) -> float:
+        """Where a force reading saturates: the int16 full scale times the scale (655.34 N)."""
+        return INT16_MAX * self.force_N_per_count
+
 
 def to_int16_counts(values: FloatArray, per_count: float) -> NDArray[np.int64]:
     """Round to counts and saturate at the int16 range (an ADC's full scale)."""

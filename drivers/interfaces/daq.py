@@ -242,6 +242,14 @@ class Daq(Device):
 
     @property
     @abstractmethod
+    def force_range_N(self) -> float:
+        """The force sensor's range [N]: a force reading of this size (or more) is saturated, so it
+        means "at least this much". The force guard trips there and the dry run refuses a target
+        above it. A real sensor's comes from the configuration, a simulated one's from its
+        settings; either is at most the converter's full scale."""
+
+    @property
+    @abstractmethod
     def dropped_samples(self) -> int:
         """Samples lost so far (counter gaps, incomplete pairs, overflow), never invented."""
 

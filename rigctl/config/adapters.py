@@ -68,6 +68,7 @@ def daq_config(config: RigConfig) -> CanDaqConfig:
         node_id=d.node_id,
         rate_hz=float(d.sample_rate_hz),
         force_N_per_count=d.force_N_per_count,
+        force_range_N=d.force_range_N,
         volts_per_count=d.volts_per_count,
         command_timeout_s=d.command_timeout_s,
         command_retries=d.command_retries,

@@ -192,6 +192,15 @@ class DaqSection:
     node_id: int = setting(1, "Node id: data on 0x180/0x280 + node, commands on 0x600 + node.", ge=1, le=127)
     sample_rate_hz: int = setting(1024, "Sample rate of forces and probes.", unit="Hz", ge=1, le=65535)
     force_N_per_count: float = setting(0.02, "Force scale.", unit="N/count", gt=0.0)
+    force_range_N: float = setting(
+        655.34,
+        "The force sensor's range: a reading this large is saturated (at least this much), so the "
+        "force guard trips there and the dry run refuses a target above it. Used as at most the "
+        "DAQ's full scale, 32767 counts x force_N_per_count (655.34 N at 0.02 N/count); the "
+        "simulated sensor's range is that full scale.",
+        unit="N",
+        gt=0.0,
+    )
     volts_per_count: float = setting(10.0 / 32768.0, "Analog scale.", unit="V/count", gt=0.0)
     command_timeout_s: float = setting(0.3, "Reply timeout of a command.", unit="s", gt=0.0, le=10.0)
     command_retries: int = setting(1, "Retries of an unanswered command.", ge=0, le=3)
