@@ -13,6 +13,7 @@ from typing import Any, Generic, TypeVar
 
 from experiments.normal_load import LoadNormal, ReleaseNormal
 from experiments.params import ParamDef
+from experiments.recentre import recentred
 from experiments.steps import Hold, MoveTangential, ReturnTangential, Step
 
 P = TypeVar("P")
@@ -36,6 +37,15 @@ def preload_hold_s() -> Any:
 
 def settle_s() -> Any:
     return param(5.0, "s", "rest at the set force before sliding")
+
+
+def recentre_probes() -> Any:
+    return param(1.0, "-", "1: re-centre the probes' mounts during the slides, keeping delta within "
+                 "their 74 um (docs/experiments.md); 0: never")
+
+
+def recentre_every_m() -> Any:
+    return param(30e-6, "m", "stage travel between re-centrings of the probes")
 
 
 def travel_m() -> Any:
@@ -67,11 +77,14 @@ class Protocol(Generic[P]):
 
 
 class Loading:
-    """What every protocol that loads the contact before sliding has (pre-load, hold, settle)."""
+    """What every protocol that loads the contact before sliding has (pre-load, hold, settle, the
+    probes' re-centring)."""
 
     preload_factor: float
     preload_hold_s: float
     settle_s: float
+    recentre_probes: float
+    recentre_every_m: float
 
 
 @dataclass(frozen=True)
@@ -92,6 +105,8 @@ class TlreParams(Loading):
     preload_factor: float = preload_factor()
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
+    recentre_probes: float = recentre_probes()
+    recentre_every_m: float = recentre_every_m()
 
 
 @dataclass(frozen=True)
@@ -103,6 +118,8 @@ class ForceSweepParams(Loading):
     preload_factor: float = preload_factor()
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
+    recentre_probes: float = recentre_probes()
+    recentre_every_m: float = recentre_every_m()
 
 
 @dataclass(frozen=True)
@@ -115,6 +132,8 @@ class VelocityStepsParams(Loading):
     preload_factor: float = preload_factor()
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
+    recentre_probes: float = recentre_probes()
+    recentre_every_m: float = recentre_every_m()
 
 
 @dataclass(frozen=True)
@@ -126,6 +145,8 @@ class SlideHoldSlideParams(Loading):
     preload_factor: float = preload_factor()
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
+    recentre_probes: float = recentre_probes()
+    recentre_every_m: float = recentre_every_m()
 
 
 def _load(p: Loading, fn_N: float) -> list[Step]:
@@ -159,28 +180,28 @@ def build_tlre(p: TlreParams) -> list[Step]:
     steps: list[Step] = []
     for _ in range(p.repetitions):
         steps += _tangential_run(p, p.fn_N)
-    return steps
+    return recentred(steps, p.recentre_probes, p.recentre_every_m)
 
 
 def build_force_sweep(p: ForceSweepParams) -> list[Step]:
     steps: list[Step] = []
     for fn in p.forces_N:
         steps += _tangential_run(p, fn)
-    return steps
+    return recentred(steps, p.recentre_probes, p.recentre_every_m)
 
 
 def build_velocity_steps(p: VelocityStepsParams) -> list[Step]:
     steps: list[Step] = [*_load(p, p.fn_N)]
     for v in p.velocities_m_s:
         steps.append(MoveTangential(p.distance_m, v))
-    return [*steps, ReleaseNormal(), ReturnTangential()]
+    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_every_m)
 
 
 def build_slide_hold_slide(p: SlideHoldSlideParams) -> list[Step]:
     steps: list[Step] = [*_load(p, p.fn_N), MoveTangential(p.slide_m, p.velocity_m_s)]
     for hold in p.holds_s:
         steps += [Hold(hold), MoveTangential(p.slide_m, p.velocity_m_s)]
-    return [*steps, ReleaseNormal(), ReturnTangential()]
+    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_every_m)
 
 
 PROTOCOLS: dict[str, Protocol[Any]] = {
