@@ -33,7 +33,7 @@ from drivers.safety import ForceGuard, StaleReadingGuard
 from experiments.context import Controls, RigLimits, RunContext
 from experiments.errors import PlanError, ProtocolAborted
 from experiments.normal_load import CONTACT_N
-from experiments.params import resolve
+from experiments.params import MAX_PLAN_STEPS, check_step_count, resolve
 from experiments.protocols import PROTOCOLS, Protocol
 from experiments.steps import POSITION_TOLERANCE_M, PlanState, Step
 from rigctl.acquisition import Acquisition, AcquisitionStats, RigDevices
@@ -99,6 +99,8 @@ def dry_run(
     state = PlanState(x_m=x_start_m, x_start_m=x_start_m)
     planned = []
     for i, step in enumerate(steps, 1):
+        if i > MAX_PLAN_STEPS:  # a step before it that breaks a limit is named first
+            check_step_count(len(steps), protocol.name)
         est = step.plan(state, limits)
         planned.append(PlannedStep(i, step.describe(), est))
     plan = Plan(protocol.name, params, tuple(planned), ends_loaded_N=state.fn_N)

@@ -84,3 +84,21 @@ def test_force_onto_a_device_is_refused_and_the_node_kept(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is a character device, not a regular file" in err, err
     assert stat.S_ISCHR(os.stat(node).st_mode)
+
+
+def test_a_plan_past_the_step_limit_is_refused_at_once(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--param repetitions=1000000000 --dry-run` built its steps for minutes with memory growing;
+    refused in one line naming the parameter and the limit before any step is built."""
+    import time
+
+    t0 = time.monotonic()
+    assert main(["run", "tlre", "--dry-run", "--param", "repetitions=1000000000"]) == 2
+    assert time.monotonic() - t0 < 10.0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "repetitions" in err and "at most 10,000 steps" in err, err
+
+
+def test_a_parameter_given_twice_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "tlre", "--dry-run", "--param", "fn_N=300", "--param", "fn_N=250"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--param fn_N is given twice (300 and 250)" in err, err
