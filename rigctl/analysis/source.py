@@ -19,6 +19,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from rigctl.analysis.delta_stitch import stitch_run
 from rigctl.data import DataError, FloatArray, MeasuredRun
 from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
 from rigctl.status import RunStatus
@@ -157,6 +158,7 @@ def _open_h5(path: Path) -> RunSource:
                 parameters = {}
                 notes.append("protocol parameters unreadable")
             markers = reader.events()
+            run = stitch_run(run, markers)  # delta continuous across the probes' re-centrings
             frames = _frame_info(reader.h5file, notes)
             protocol = reader.protocol
             config = reader.config_toml

@@ -9,7 +9,6 @@ table (docs/run-file.md), read by the analysis to stitch delta across the move
 
 from __future__ import annotations
 
-import math
 import re
 
 RECENTRE_EVENT = "probe_recentre"
@@ -17,7 +16,7 @@ RECENTRE_EVENT = "probe_recentre"
 NOT_RECENTRED_EVENT = "probe_not_recentred"
 """Event name of a re-centring that could not be made (the reason in the message)."""
 
-_MESSAGE = re.compile(r"\s*(\w+):\s*mount moved\s+([+-]?[0-9.]+(?:e[+-]?[0-9]+)?|nan)\s*um")
+_MESSAGE = re.compile(r"\s*(\w+):\s*mount moved\s+([+-]?(?:[0-9.]+(?:e[+-]?[0-9]+)?|nan))\s*um")
 
 
 def recentre_message(column: str, moved_m: float, before_m: float, after_m: float) -> str:
@@ -33,4 +32,4 @@ def parse_recentre(message: str) -> tuple[str, float] | None:
     if m is None:
         return None
     value = m.group(2)
-    return m.group(1), (math.nan if value == "nan" else float(value) * 1e-6)
+    return m.group(1), float(value) * 1e-6
