@@ -10,16 +10,21 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-from experiments.context import RigLimits
-from rigctl.acquisition import RigDevices
-from rigctl.config import RigConfig
+from experiments.context import Controls, RigLimits
+from experiments.protocols import Protocol
+from experiments.runner import Runner, RunProgressFn
+from rigctl.acquisition import Acquisition, RigDevices
+from rigctl.config import RigConfig, adapters
 from rigctl.config.errors import ConfigError
+from rigctl.config.loader import to_toml
 from rigctl.errors import UsageError
 from rigctl.model import ModelSpec
+from rigctl.storage.layout import RunDescription
 
 MAX_SPEED = math.inf
 """``--speed max``: a simulated rig paced by the acquisition (:class:`Pacer`), as fast as the CPU allows
@@ -169,7 +174,64 @@ class OpenRig:
     sim: Any = None
     """The SimRig of a simulated backend (its virtual rig, faults), None for the hardware."""
     pacer: Pacer | None = None
-    """For ``--speed max``: call ``pacer.follow(lambda: acq.t_s)`` once the acquisition exists."""
+    """An accelerated simulated rig's pacer; :meth:`runner` makes it follow the acquisition."""
+    backend: str = field(default="real", kw_only=True)
+    """``sim``, ``sim-wire`` or ``real``: what :func:`open_rig` opened (stated in run files)."""
+
+    @property
+    def speed_text(self) -> str:
+        """The rig's clock as ``--speed`` says it: ``1``, ``N`` or ``max``."""
+        return "max" if math.isinf(self.speed) else f"{self.speed:g}"
+
+    def runner(
+        self,
+        protocol: Protocol[Any],
+        given: Mapping[str, Any],
+        *,
+        out: Path | None,
+        camera: bool = True,
+        operator: str | None = None,
+        notes: str = "",
+        metadata: Mapping[str, str] | None = None,
+        controls: Controls | None = None,
+        progress: RunProgressFn | None = None,
+        overwrite: bool = False,
+        on_acquisition: Callable[[Acquisition], None] | None = None,
+    ) -> Runner:
+        """The one way to build a run of ``protocol`` on this rig: ``rigctl run``, the window's
+        in-process worker and the run service all call it, so their run files say the same.
+
+        The run file gets the configuration's layouts, force limit and flush interval, and metadata
+        ``backend``, ``speed``, ``rig``, the caller's ``metadata`` (where the run was started
+        from) and the rig's stated parameters (:meth:`stated_parameters`). ``operator`` defaults
+        to the configuration's. An accelerated simulated rig is paced by the recorded data
+        (``pacer.follow``) before ``on_acquisition`` is called with the acquisition.
+        """
+        config = self.config
+        description = RunDescription(
+            protocol=protocol.name,
+            operator=operator if operator is not None else config.rig.operator,
+            notes=notes, config_toml=to_toml(config),
+            metadata={"backend": self.backend, "speed": self.speed_text, "rig": config.rig.name,
+                      **(metadata or {}), **self.stated_parameters()},
+        )
+        pacer = self.pacer
+
+        def acquisition_started(acq: Acquisition) -> None:
+            if pacer is not None:
+                pacer.follow(lambda: acq.t_s)
+            if on_acquisition is not None:
+                on_acquisition(acq)
+
+        return Runner(
+            protocol, dict(given), self.devices, self.limits, out=out,
+            daq_layout=adapters.daq_layout(config),
+            camera_layout=adapters.camera_layout(config) if camera else None,
+            description=description, controls=controls,
+            force_limit_N=adapters.force_limit_N(config), progress=progress,
+            flush_interval_s=config.storage.flush_interval_s, overwrite=overwrite,
+            on_acquisition=acquisition_started,
+        )
 
     def stated_parameters(self) -> dict[str, str]:
         """``rig.<parameter>`` metadata for this rig's run files: the simulated rig states its
@@ -243,7 +305,8 @@ def open_rig(
             # the rig's clock says where "now" is on the recorded axis: positions polled, step
             # markers and waits are placed there, not at the newest sample the recorder has read
             devices = RigDevices.from_device_set(sim.devices, device_now_s=sim.rig.daq_time_now_s)
-            yield OpenRig(devices, rig_limits(config), config, speed, sim, pacer)
+            yield OpenRig(devices, rig_limits(config), config, speed, sim, pacer,
+                          backend=backend)
         finally:
             if pacer is not None:
                 pacer.stop()
@@ -275,7 +338,8 @@ def open_rig(
         opened.append(d2)
         cam = OpenCvCamera(adapters.camera_config(config))
         opened.append(cam)
-        yield OpenRig(RigDevices(tang, normal, daq, cam, d1, d2), rig_limits(config), config, 1.0)
+        yield OpenRig(RigDevices(tang, normal, daq, cam, d1, d2), rig_limits(config), config, 1.0,
+                      backend=backend)
     finally:
         for dev in reversed(opened):
             with contextlib.suppress(Exception):

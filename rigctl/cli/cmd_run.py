@@ -22,8 +22,6 @@ from rigctl.status import RunStatus
 if TYPE_CHECKING:
     from experiments.protocol_file import ProtocolFile
     from experiments.protocols import Protocol
-    from rigctl.acquisition import Acquisition
-    from rigctl.rigs import Pacer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -59,12 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from experiments.errors import PlanError
     from experiments.params import parse_assignments
-    from experiments.runner import Runner
     from rigctl.config import adapters
-    from rigctl.config.loader import load_effective_config, to_toml
+    from rigctl.config.loader import load_effective_config
     from rigctl.io.outputs import check_output_file
     from rigctl.rigs import open_rig, parse_speed
-    from rigctl.storage.layout import RunDescription
 
     early = _EarlySignals()
     protocol, origin = _protocol(args)
@@ -96,26 +92,13 @@ def run(args: argparse.Namespace) -> int:
     if out is not None:  # the one output policy, before the rig opens (rigctl/io/outputs.py)
         check_output_file(out, "--out", force=args.force)
     with open_rig(backend, config, speed) as rig:
-        camera = None if args.no_camera else adapters.camera_layout(rig.config)
-        desc = RunDescription(
-            protocol=protocol.name,
-            operator=args.operator if args.operator is not None else config.rig.operator,
-            notes=args.notes, config_toml=to_toml(rig.config),
-            metadata={"backend": backend, "speed": args.speed, "rig": config.rig.name,
-                      **rig.stated_parameters(),
-                      **(origin.metadata() if origin is not None else {})},
-        )
         on_acquisition: list[Callable[[Any], None]] = []
-        pacing = _pacing(rig.pacer)
-        if pacing is not None:
-            on_acquisition.append(pacing)
-        runner = Runner(
-            protocol, given, rig.devices, rig.limits, out=out,
-            daq_layout=adapters.daq_layout(rig.config), camera_layout=camera, description=desc,
-            force_limit_N=adapters.force_limit_N(rig.config),
-            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=args.force,
-            on_acquisition=lambda acq: _each(on_acquisition, acq),
+        runner = rig.runner(  # built as the window and the run service build it (rigctl/rigs.py)
+            protocol, given, out=out, camera=not args.no_camera, operator=args.operator,
+            notes=args.notes, metadata=origin.metadata() if origin is not None else None,
+            overwrite=args.force, on_acquisition=lambda acq: _each(on_acquisition, acq),
         )
+        camera = runner.camera_layout
         try:
             plan, _ = runner.plan()
         except PlanError as exc:
@@ -199,13 +182,6 @@ def _bar_logging(bar: Any) -> Any:
 
     with warnings_on_their_own_lines():
         yield
-
-
-def _pacing(pacer: Pacer | None) -> Callable[[Acquisition], None] | None:
-    """The simulated rig's clock follows the recorded data (None on real hardware)."""
-    if pacer is None:
-        return None
-    return lambda acq: pacer.follow(lambda: acq.t_s)
 
 
 def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:

@@ -46,8 +46,7 @@ from experiments.protocols import PROTOCOLS, Protocol
 from experiments.runner import Plan, Runner, RunOutcome
 from rigctl.acquisition import Acquisition
 from rigctl.acquisition.publisher import Subscription
-from rigctl.config import RigConfig, adapters
-from rigctl.config.loader import to_toml
+from rigctl.config import RigConfig
 from rigctl.gui.live_plot import LivePlot
 from rigctl.gui.param_table import ParamTable
 from rigctl.gui.queue_view import QueueView
@@ -60,7 +59,6 @@ from rigctl.runservice.frames import start_forwarding
 from rigctl.runservice.queue import QueueState
 from rigctl.runservice.wire import Address, JobSpec
 from rigctl.status import RunStatus
-from rigctl.storage.layout import RunDescription
 
 PLOT_WINDOW_S = 60.0
 """Rig time shown by the live plot."""
@@ -804,12 +802,9 @@ class RunPanel(QWidget):
                 self._frames.put(frame)
 
     def _runner(self, job: _Job, rig: OpenRig) -> Runner:
-        pacer = rig.pacer
         sig = self._sig
 
         def on_acquisition(acq: Acquisition) -> None:
-            if pacer is not None:
-                pacer.follow(lambda: acq.t_s)
             sig.subscribed.emit(acq.publisher.subscribe("daq", maxlen=SUBSCRIPTION_BLOCKS))
             if acq.record_camera:
                 worker = threading.current_thread()
@@ -821,20 +816,10 @@ class RunPanel(QWidget):
             ctx = runner.ctx
             sig.progress.emit(i, n, desc, elapsed, eta, ctx.acq.t_s if ctx else math.nan)
 
-        desc = RunDescription(
-            protocol=job.protocol.name, operator=job.operator, notes=job.notes,
-            config_toml=to_toml(rig.config),
-            metadata={"backend": self.backend, "speed": job.speed_text, "rig": self.config.rig.name,
-                      "started_from": "gui"},
-        )
-        runner = Runner(
-            job.protocol, job.given, rig.devices, rig.limits, out=job.out,
-            daq_layout=adapters.daq_layout(rig.config),
-            camera_layout=adapters.camera_layout(rig.config) if job.camera else None,
-            description=desc, controls=job.controls,
-            force_limit_N=adapters.force_limit_N(rig.config), progress=progress,
-            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=job.overwrite,
-            on_acquisition=on_acquisition,
+        runner = rig.runner(  # built as rigctl run builds it (rigctl/rigs.py)
+            job.protocol, job.given, out=job.out, camera=job.camera, operator=job.operator,
+            notes=job.notes, metadata={"started_from": "gui"}, controls=job.controls,
+            progress=progress, overwrite=job.overwrite, on_acquisition=on_acquisition,
         )
         return runner
 

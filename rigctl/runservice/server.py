@@ -41,8 +41,7 @@ from experiments.errors import PlanError
 from experiments.params import parse_assignments
 from experiments.runner import Runner, get_protocol
 from rigctl.acquisition import Acquisition
-from rigctl.config import RigConfig, adapters
-from rigctl.config.loader import to_toml
+from rigctl.config import RigConfig
 from rigctl.errors import InputError
 from rigctl.rigs import OpenRig, open_rig
 from rigctl.runservice.culprits import refusal_culprits
@@ -51,7 +50,6 @@ from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import start_forwarding
 from rigctl.runservice.queue import RunQueue
 from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
-from rigctl.storage.layout import RunDescription
 
 _log = logging.getLogger("rigctl.runservice")
 
@@ -477,13 +475,10 @@ class RunService:
         rig = self.rig
         protocol = get_protocol(job.protocol)
         given = parse_assignments([f"{k}={v}" for k, v in job.given.items()])
-        pacer = rig.pacer
         controls = self._controls
         assert controls is not None
 
         def on_acquisition(acq: Acquisition) -> None:
-            if pacer is not None:
-                pacer.follow(lambda: acq.t_s)
             sub = acq.publisher.subscribe("daq", maxlen=512)
             live = threading.Thread(target=self._forward, args=(sub, acq),
                                     name="runservice-live", daemon=True)
@@ -501,22 +496,11 @@ class RunService:
             self.state.progress = p
             self._broadcast("progress", p)
 
-        desc = RunDescription(
-            protocol=protocol.name,
-            operator=job.operator if job.operator is not None else rig.config.rig.operator,
-            notes=job.notes, config_toml=to_toml(rig.config),
-            metadata={"backend": self.backend, "speed": job.speed_text, "rig": rig.config.rig.name,
-                      "started_from": job.started_from, "run_service_pid": str(os.getpid()),
-                      **rig.stated_parameters()},
-        )
-        runner = Runner(
-            protocol, given, rig.devices, rig.limits, out=None if job.dry or job.out is None
-            else Path(job.out),
-            daq_layout=adapters.daq_layout(rig.config),
-            camera_layout=adapters.camera_layout(rig.config) if job.camera else None,
-            description=desc, controls=controls,
-            force_limit_N=adapters.force_limit_N(rig.config), progress=progress,
-            flush_interval_s=rig.config.storage.flush_interval_s, overwrite=job.overwrite,
+        runner = rig.runner(  # built as rigctl run builds it (rigctl/rigs.py)
+            protocol, given, out=None if job.dry or job.out is None else Path(job.out),
+            camera=job.camera, operator=job.operator, notes=job.notes,
+            metadata={"started_from": job.started_from, "run_service_pid": str(os.getpid())},
+            controls=controls, progress=progress, overwrite=job.overwrite,
             on_acquisition=on_acquisition,
         )
         self._runner = runner
