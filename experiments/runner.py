@@ -41,6 +41,7 @@ from rigctl.errors import InputError
 from rigctl.status import RunStatus
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
+from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES
 
 _log = logging.getLogger(__name__)
 
@@ -189,6 +190,7 @@ class Runner:
         flush_interval_s: float = 0.25,
         overwrite: bool = False,
         on_acquisition: Callable[[Acquisition], None] | None = None,
+        min_free_bytes: int = DEFAULT_MIN_FREE_BYTES,
     ) -> None:
         self.protocol = protocol
         self.params = params
@@ -204,6 +206,9 @@ class Runner:
         self.progress = progress
         self.flush_interval_s = flush_interval_s
         self.overwrite = overwrite
+        self.min_free_bytes = min_free_bytes
+        """Free space kept beyond the run's estimated size before it starts, and half of it while it
+        records (``storage.min_free_bytes``; :class:`~rigctl.storage.RunWriter`)."""
         self.on_acquisition = on_acquisition
         self.ctx: RunContext | None = None
 
@@ -225,7 +230,7 @@ class Runner:
             writer = RunWriter(
                 self.out, desc, self.daq_layout, self.camera_layout,
                 flush_interval_s=self.flush_interval_s, expected_duration_s=plan.duration_s,
-                overwrite=self.overwrite,
+                overwrite=self.overwrite, min_free_bytes=self.min_free_bytes,
             )
         guard = ForceGuard(self.devices.normal_stage, self.force_limit_N,
                            range_N=self.limits.force_range_N)

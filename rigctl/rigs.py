@@ -201,7 +201,8 @@ class OpenRig:
         """The one way to build a run of ``protocol`` on this rig: ``rigctl run``, the window's
         in-process worker and the run service all call it, so their run files say the same.
 
-        The run file gets the configuration's layouts, force limit and flush interval, and metadata
+        The run file gets the configuration's layouts, force limit, flush interval and free-space
+        reserve (``storage.min_free_bytes``), and metadata
         ``backend``, ``speed``, ``rig``, the caller's ``metadata`` (where the run was started
         from) and the rig's stated parameters (:meth:`stated_parameters`). ``operator`` defaults
         to the configuration's. An accelerated simulated rig is paced by the recorded data
@@ -230,7 +231,7 @@ class OpenRig:
             description=description, controls=controls,
             force_limit_N=adapters.force_limit_N(config), progress=progress,
             flush_interval_s=config.storage.flush_interval_s, overwrite=overwrite,
-            on_acquisition=acquisition_started,
+            on_acquisition=acquisition_started, min_free_bytes=config.storage.min_free_bytes,
         )
 
     def stated_parameters(self) -> dict[str, str]:

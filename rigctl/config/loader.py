@@ -8,6 +8,7 @@ Every problem raises :class:`ConfigError` naming the dotted key, e.g.
 
 from __future__ import annotations
 
+import codecs
 import dataclasses
 import difflib
 import json
@@ -27,6 +28,9 @@ from rigctl.config.errors import ConfigError
 from rigctl.config.fields import check_bounds, setting_of
 from rigctl.config.schema import RigConfig
 
+UTF8_BOM = "\ufeff"
+"""The byte-order mark some editors put first in a UTF-8 file: refused by name (tomllib's own
+message, "Invalid statement (at line 1, column 1)", shows nothing wrong there)."""
 ENV_VAR = "RIGCTL_CONFIG"
 """Environment variable naming the configuration file used when no ``--config`` is given."""
 
@@ -44,11 +48,18 @@ def load_config(path: str | Path | None = None) -> RigConfig:
         return default_config()
     src = Path(path)
     try:
-        text = src.read_text(encoding="utf-8")
+        data = src.read_bytes()
     except FileNotFoundError:
         raise ConfigError(f"{src}: no such configuration file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise ConfigError(f"{src}: cannot read: {exc}") from None
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise ConfigError(f"{src}: is UTF-16 text; TOML is UTF-8: save the file as UTF-8 (without "
+                          "a byte-order mark)")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{src}: cannot read: not UTF-8 text ({exc})") from None
     return parse_config(text, source=str(src))
 
 
@@ -71,6 +82,10 @@ def load_effective_config(path: str | Path | None = None) -> tuple[RigConfig, Pa
 
 def parse_config(text: str, *, source: str = "<config>") -> RigConfig:
     """Parse TOML text into a validated :class:`RigConfig`."""
+    if text.startswith(UTF8_BOM):
+        raise ConfigError(f"{source}: starts with a UTF-8 byte-order mark (BOM, written by some "
+                          "Windows editors), which the TOML reader does not accept: save the file as "
+                          "UTF-8 without BOM")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -275,7 +275,9 @@ class StorageSection:
         "for images that do not compress). docs/run-file.md.",
     )
     min_free_bytes: int = setting(
-        64 * 2**20, "Free space kept in reserve beyond a run's estimated size.", unit="B", ge=0
+        64 * 2**20, "Free space kept in reserve beyond a run's estimated size: a run that would "
+        "leave less is refused before anything moves, and recording stops (the file closed with "
+        "its status) when less than half of it is left.", unit="B", ge=0
     )
 
 

@@ -211,3 +211,24 @@ def test_adapters_build_every_device_config() -> None:
     rig = virtual_rig_config(c)
     assert (rig.sample_rate_hz, rig.seed) == (2048.0, 7)
     assert rig.probes[1].range_m == 5e-5 and rig.probes[0].range_m == 74e-6
+
+
+def test_a_byte_order_mark_is_named(tmp_path: Path) -> None:
+    """A UTF-8 BOM (some Windows editors) got tomllib's "Invalid statement (at line 1, column 1)";
+    UTF-16 got a codec error. Both are named, with what to do."""
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + b'[rig]\noperator = "Han"\n')
+    with pytest.raises(ConfigError, match=r"bom\.toml: starts with a UTF-8 byte-order mark .* "
+                                          r"save the file as UTF-8 without BOM"):
+        load_config(bom)
+    utf16 = tmp_path / "utf16.toml"
+    utf16.write_text('[rig]\noperator = "Han"\n', encoding="utf-16")
+    with pytest.raises(ConfigError, match=r"utf16\.toml: is UTF-16 text; TOML is UTF-8"):
+        load_config(utf16)
+    latin1 = tmp_path / "latin1.toml"
+    latin1.write_bytes('[rig]\noperator = "Jürgen"\n'.encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin1\.toml: cannot read: not UTF-8 text"):
+        load_config(latin1)
+    plain = tmp_path / "plain.toml"
+    plain.write_text('[rig]\noperator = "Jürgen"\n', encoding="utf-8")
+    assert load_config(plain).rig.operator == "Jürgen"
