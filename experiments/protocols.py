@@ -40,8 +40,9 @@ def settle_s() -> Any:
 
 
 def recentre_probes() -> Any:
-    return param(1.0, "-", "1: re-centre the probes' mounts during the slides, keeping delta within "
-                 "their 74 um (docs/experiments.md); 0: never")
+    return param(0.0, "-", "1: re-centre the probes' mounts during the slides, keeping delta within "
+                 "their 74 um (docs/experiments.md); 0 (default until the analysis reads a slide "
+                 "with stops as one pass): never")
 
 
 def recentre_every_m() -> Any:

@@ -22,12 +22,12 @@ from tests.experiments.test_runs import make_runner
 
 LIMITS = rig_limits(default_config())
 SLIDE = {"repetitions": "1", "travel_m": "100e-6", "velocity_m_s": "2e-5",
-         "preload_hold_s": "0.5", "settle_s": "1"}
+         "preload_hold_s": "0.5", "settle_s": "1", "recentre_probes": "1"}
 
 
 @pytest.mark.parametrize("name", ["tlre", "force_sweep", "velocity_steps", "slide_hold_slide"])
 def test_sliding_protocols_recentre_and_return_the_mounts(name: str) -> None:
-    _, steps = dry_run(PROTOCOLS[name], {}, LIMITS, 0.1)
+    _, steps = dry_run(PROTOCOLS[name], {"recentre_probes": "1"}, LIMITS, 0.1)
     assert any(isinstance(s, RecentreProbes) for s in steps)
     assert any(isinstance(s, ReturnProbeMounts) for s in steps)
     _, off = dry_run(PROTOCOLS[name], {"recentre_probes": "0"}, LIMITS, 0.1)
@@ -35,10 +35,10 @@ def test_sliding_protocols_recentre_and_return_the_mounts(name: str) -> None:
 
 
 def test_the_slide_is_cut_and_holds_keep_their_length() -> None:
-    plan, _ = dry_run(get_protocol("tlre"), {"repetitions": "1"}, LIMITS, 0.1)
+    plan, _ = dry_run(get_protocol("tlre"), {"repetitions": "1", "recentre_probes": "1"}, LIMITS, 0.1)
     slides = [s for s in plan.steps if s.description.startswith("slide")]
     assert len(slides) == 9 and all("30.0 um" in s.description for s in slides)
-    shs, _ = dry_run(get_protocol("slide_hold_slide"), {}, LIMITS, 0.1)
+    shs, _ = dry_run(get_protocol("slide_hold_slide"), {"recentre_probes": "1"}, LIMITS, 0.1)
     plain, _ = dry_run(get_protocol("slide_hold_slide"), {"recentre_probes": "0"}, LIMITS, 0.1)
     holds = [s.estimate_s for s in shs.steps if s.description.startswith("hold")]
     assert sum(holds) == pytest.approx(sum(s.estimate_s for s in plain.steps
@@ -49,7 +49,7 @@ def test_the_slide_is_cut_and_holds_keep_their_length() -> None:
                                           ("recentre_every_m", "nan"), ("recentre_probes", "0.5")])
 def test_a_bad_setting_is_refused(key: str, bad: str) -> None:
     with pytest.raises(PlanError, match=key):
-        dry_run(get_protocol("tlre"), {key: bad}, LIMITS, 0.1)
+        dry_run(get_protocol("tlre"), {"recentre_probes": "1", key: bad}, LIMITS, 0.1)
 
 
 def _slide_events(path: Path) -> tuple[list[tuple[float, str, str]], float]:
