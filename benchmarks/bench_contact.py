@@ -7,10 +7,10 @@ noise so that the compression sees what a real recording gives. Then, in one run
 
 * **read**: ``h5py`` reads every frame of the file, chunk by chunk (the same chunk size), and does
   nothing with them: what reading costs (decompression included).
-* **decoder read**: the analyses' reader, :class:`rigctl.analysis.frame_inflate.FrameDecoder`
+* **decoder read**: the analyses' reader, :class:`rigctl.records.frame_inflate.FrameDecoder`
   (ISA-L's inflate, h5py for what it cannot handle), reads the same frames and does nothing with
   them; how many frames it inflated itself and how many h5py read.
-* **intensity**: :func:`rigctl.analysis.contact_intensity.stream_intensity` over the same frames
+* **intensity**: :func:`rigctl.records.contact_intensity.stream_intensity` over the same frames
   (Isum, Ic and I(x, t) in 100 bins, Sec. 2.2 and 3.2): frames/s and its ratio to both reads.
 * **compute**: the intensity pass's arithmetic alone on one chunk already in memory (frames/s).
 * **memory**: the peak of ``tracemalloc`` during the intensity pass for several chunk sizes, next to
@@ -42,13 +42,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from rigctl.analysis.contact_frames import DEFAULT_CHUNK_BYTES, chunk_frames
-from rigctl.analysis.contact_intensity import (
+from rigctl.records.contact_frames import DEFAULT_CHUNK_BYTES, chunk_frames
+from rigctl.records.contact_intensity import (
     ContactRegion,
     find_contact_region,
     stream_intensity,
 )
-from rigctl.analysis.frame_inflate import FrameDecoder
+from rigctl.records.frame_inflate import FrameDecoder
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import (
     CAMERA,

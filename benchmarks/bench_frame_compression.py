@@ -12,7 +12,7 @@ Each frame set is written into a fresh file once per filter and chunk shape, exa
 :class:`rigctl.storage.RunWriter` creates the frames dataset (resizable, Fletcher-32 checksums,
 ``libver`` v110), in appends of ``--batch`` frames (the acquisition's writer thread hands over what
 its queue holds: 1 frame at a time at 60 Hz, up to 32 when it catches up); then read back the way
-the analyses stream frames (:func:`rigctl.analysis.contact_frames.chunk_frames`: ~100 frames per
+the analyses stream frames (:func:`rigctl.records.contact_frames.chunk_frames`: ~100 frames per
 read). Reported per case: bytes per frame on disk (``Dataset.id.get_storage_size()``), the ratio
 to raw pixels, write frames/s (wall) and the CPU milliseconds one frame's write costs (the figure
 that does not depend on the machine's load: 60 Hz needs 1000 / 60 = 16.7 ms or less of one core),
@@ -43,7 +43,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from rigctl.analysis.contact_frames import DEFAULT_CHUNK_BYTES, chunk_frames
+from rigctl.records.contact_frames import DEFAULT_CHUNK_BYTES, chunk_frames
 from rigctl.storage.layout import LIBVER
 from sim_devices.contact_image import CameraOptics, ContactImageRenderer
 

@@ -37,9 +37,9 @@ from rigctl.errors import SimulationError
 from rigctl.model import Drive, ParameterError, Simulator, build_model
 from rigctl.model.effects import LIBRARY
 from rigctl.model.noise import NoiseModel
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
 from rigctl.workbench.data_scale import DataScale, scale_ratios
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice

@@ -33,8 +33,8 @@ from typing import Any
 
 from rigctl.model import build_model, effect_names
 from rigctl.model.effects import LIBRARY
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, PROTOCOLS, simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.model_choice import ModelChoice
 

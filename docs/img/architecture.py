@@ -15,23 +15,27 @@ from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
 
 LAYERS: list[tuple[str, list[tuple[str, str]]]] = [  # top to bottom: (layer, [(package, what)])
     ("user interfaces", [("rigctl.cli", "command line"), ("rigctl.gui", "operator's window")]),
+    ("model search,\nanalyses", [
+        ("rigctl.workbench", "model vs data: score, fit,\ndiagnose (not the analysis)"),
+        ("rigctl.analysis", "the paper's analyses\n(not the workbench)"),
+    ]),
+    ("records", [("rigctl.records", "reading a record: prepared runs, slip events,\n"
+                                    "features, contact images")]),
     ("glue", [
         ("experiments", "protocols, dry run,\nrunner, safe state"),
         ("rigctl.acquisition", "recording\nsession"),
         ("rigctl.storage / io", "run files,\nCSV format"),
         ("rigctl.config, rigs", "configuration,\nopening a rig"),
-        ("rigctl.workbench", "model vs data:\nscore, fit, diagnose"),
-        ("rigctl.analysis", "the paper's\nanalyses"),
     ]),
     ("simulated devices", [("sim_devices", "virtual rig, wire servers,\nin-process devices, faults")]),
     ("physics", [("rigctl.model", "stick-slip engine,\neffects, parameters")]),
     ("devices", [("drivers", "interfaces, real drivers, limits,\nerrors, value checks")]),
 ]
-COLOURS = ["#d9e8f5", "#e3f0d8", "#f6e6cc", "#f3d9d9", "#e6e0f0"]
+COLOURS = ["#d9e8f5", "#f0e4f0", "#e0f0ee", "#e3f0d8", "#f6e6cc", "#f3d9d9", "#e6e0f0"]
 
 
 def draw(path: Path) -> None:
-    fig, ax = plt.subplots(figsize=(12.5, 7.6))
+    fig, ax = plt.subplots(figsize=(12.5, 10.2))
     ax.set_xlim(0, 13)
     ax.set_ylim(-0.6, len(LAYERS) * 1.5 + 0.2)
     ax.axis("off")
@@ -54,7 +58,7 @@ def draw(path: Path) -> None:
     for upper, lower in zip(centres[:-1], centres[1:], strict=True):
         ax.add_patch(FancyArrowPatch((11.6, upper - 0.52), (11.6, lower + 0.52),
                                      arrowstyle="-|>", mutation_scale=14, lw=1.4, color="#333333"))
-    ax.text(11.8, (centres[1] + centres[2]) / 2, "imports:\none way,\ndownwards", ha="left",
+    ax.text(11.8, (centres[2] + centres[3]) / 2, "imports:\none way,\ndownwards", ha="left",
             va="center", fontsize=9)
     ax.add_patch(FancyArrowPatch((6.45, centres[0]), (6.75, centres[0]), arrowstyle="-|>",
                                  mutation_scale=12, lw=1.2, color="#333333"))

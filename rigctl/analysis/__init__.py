@@ -11,8 +11,8 @@ and the workbench reuse them. Definitions and sources: docs/analysis.md.
 * :mod:`~rigctl.analysis.stiffness` - K_I along the Ft-delta curve and K(i)
 * :mod:`~rigctl.analysis.repeatability` - relative errors of repeated loadings (Sec. 2.2)
 * :mod:`~rigctl.analysis.sweep` - force-sweep summary and where stick-slip fades (Sec. 4.1)
-* :mod:`~rigctl.analysis.contact_frames` - camera frames streamed in chunks (bounded memory)
-* :mod:`~rigctl.analysis.contact_intensity` - Isum(t) (Eq. 1), I(x,t), the contact region
+* :mod:`~rigctl.records.contact_frames` - camera frames streamed in chunks (bounded memory)
+* :mod:`~rigctl.records.contact_intensity` - Isum(t) (Eq. 1), I(x,t), the contact region
 * :mod:`~rigctl.analysis.contact_stress` - P(x,t), P in the model's 10 parts, P at chosen Ft, Im(i)
 * :mod:`~rigctl.analysis.contact_spots` - contact spots by a weighted multi-scale filter (WSM)
 * :mod:`~rigctl.analysis.contact_csi` - colour superposition of three frames (CSI), its proportions

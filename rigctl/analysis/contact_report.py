@@ -17,9 +17,9 @@ import numpy as np
 
 from rigctl.analysis import figures_contact
 from rigctl.analysis.contact_run import ContactAnalysis
-from rigctl.analysis.contact_stress import MODEL_BINS
 from rigctl.analysis.mechanics import Mechanics
 from rigctl.io.atomic import atomic_text_writer
+from rigctl.records.contact_profile import MODEL_BINS
 
 
 def _f(x: float, digits: int = 4) -> str:

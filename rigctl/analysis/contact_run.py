@@ -3,8 +3,8 @@
 Given a run file with timed frames (:class:`rigctl.analysis.source.RunSource`) and its mechanical
 analysis (:class:`rigctl.analysis.mechanics.Mechanics`):
 
-1. the contact region and dark level (:func:`~rigctl.analysis.contact_intensity.find_contact_region`);
-2. one streamed pass over the frames: Isum(t), Ic(t), I(x, t) (:mod:`~rigctl.analysis.contact_intensity`);
+1. the contact region and dark level (:func:`~rigctl.records.contact_intensity.find_contact_region`);
+2. one streamed pass over the frames: Isum(t), Ic(t), I(x, t) (:mod:`~rigctl.records.contact_intensity`);
 3. per tangential pass: Im(i) over each K(i) window, P(x) and P(k) at chosen Ft in the initial stage
    (``INITIAL_FRACTIONS`` of the threshold Ft(1)) and in one stable stick (``STABLE_FRACTIONS`` of
    its rise from its start level to its peak), and the CSI of three frames in each of the two
@@ -23,13 +23,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rigctl.analysis.contact_csi import CsiProportions, membership, proportions
-from rigctl.analysis.contact_frames import DEFAULT_CHUNK_BYTES
-from rigctl.analysis.contact_intensity import (
-    ContactIntensity,
-    ContactRegion,
-    find_contact_region,
-    stream_intensity,
-)
 from rigctl.analysis.contact_spots import WsmSettings, extract_spots
 from rigctl.analysis.contact_stress import (
     MeanIntensity,
@@ -37,14 +30,21 @@ from rigctl.analysis.contact_stress import (
     frame_at_force,
     im_cycles,
     p_at_forces,
-    p_bins,
 )
 from rigctl.analysis.mechanics import Mechanics
-from rigctl.analysis.progress import SILENT, Progress
 from rigctl.analysis.source import RunSource
 from rigctl.analysis.stickslip import PassRecord
 from rigctl.analysis.stiffness import CycleStiffness
 from rigctl.data import DataError, FloatArray
+from rigctl.records.contact_frames import DEFAULT_CHUNK_BYTES
+from rigctl.records.contact_intensity import (
+    ContactIntensity,
+    ContactRegion,
+    find_contact_region,
+    stream_intensity,
+)
+from rigctl.records.contact_profile import p_bins
+from rigctl.records.progress import SILENT, Progress
 from rigctl.storage.reader import RunReader
 
 INITIAL_FRACTIONS: tuple[float, ...] = (0.0, 0.3, 0.6, 0.9)

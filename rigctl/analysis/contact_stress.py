@@ -1,20 +1,8 @@
 """The equivalent stress distribution P(x, t) and the mean contact intensity Im(i) (Sec. 3.2, Figs. 7, 13).
 
-Han et al. 2022, Sec. 3.2: "If the real contact area linearly changes with the change of normal force,
-the distribution of contact area on the interface can approximately represent the distribution of
-interface stress." The equation that follows was lost; we read it as I(x, t) normalised along x:
-
-    P(x, t) = I(x, t) / integral_0^1 I(x', t) dx'          (a density: its mean over x is 1)
-
-with x the normalised length of the contact, 0 the back end, 1 the front end (Fig. 7a). Sec. 5.1
-(Fig. 13): "the contact area is divided into 10 parts along the x direction, and the intensity
-proportion of local contact image is calculated as the equivalent stress distribution P(k, t)":
-
-    P(k, t) = sum_{x in part k} I(x, t) / sum_x I(x, t),   k = 1..10,   sum_k P(k, t) = 1
-
-the model's convention for its element shares P(i) (docs/model.md: element i covers x in
-[i/N, (i+1)/N), element 0 at the back end). Negative bin sums (noise below the dark level) count
-as 0; a frame without contact has no P (NaN).
+P(x, t), the contact intensity I(x, t) normalised along x, and P(k, t), its shares in the model's
+10 parts, are defined in :mod:`rigctl.records.contact_profile` (they read a record; the workbench
+uses them too).
 
 Sec. 3.2, Fig. 7d: "the average value Im(i) of the contact image intensity in the corresponding time
 is taken to calculate the K(i)": Im(i) is the mean contact intensity Ic(t) of the frames inside the
@@ -33,42 +21,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-from rigctl.analysis.contact_intensity import ContactIntensity
 from rigctl.analysis.stiffness import CycleStiffness
 from rigctl.data import FloatArray
-
-MODEL_BINS = 10
-"""Parts of the contact in the paper's model (Sec. 5.1) and in rigctl's default model (N = 10)."""
-
-
-def p_density(profile: NDArray[np.floating]) -> FloatArray:
-    """P(x, t) as a density over normalised x (rows: frames, columns: bins of x; NaN without contact)."""
-    prof = np.clip(np.asarray(profile, dtype=np.float64), 0.0, None)
-    if prof.ndim == 1:
-        prof = prof[None, :]
-    total = prof.sum(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(total > 0, prof * prof.shape[1] / total, np.nan)
-    return out
-
-
-def p_bins(profile: NDArray[np.floating], n_parts: int = MODEL_BINS) -> FloatArray:
-    """P(k, t): the share of the contact intensity in each of ``n_parts`` equal parts (sum 1).
-
-    The profile's bins must split evenly into the parts (100 bins into 10).
-    """
-    prof = np.clip(np.asarray(profile, dtype=np.float64), 0.0, None)
-    if prof.ndim == 1:
-        prof = prof[None, :]
-    nb = prof.shape[1]
-    if n_parts < 1 or nb % n_parts:
-        raise ValueError(f"{nb} profile bins do not split into {n_parts} equal parts")
-    parts = prof.reshape(prof.shape[0], n_parts, nb // n_parts).sum(axis=2)
-    total = parts.sum(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(total > 0, parts / total, np.nan)
+from rigctl.records.contact_intensity import ContactIntensity
+from rigctl.records.contact_profile import p_bins, p_density
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,11 @@ from matplotlib.patches import Patch
 
 from rigctl.analysis.contact_csi import CATEGORIES, COLOURS, csi_image
 from rigctl.analysis.contact_run import ContactAnalysis, PassContact
-from rigctl.analysis.contact_stress import MODEL_BINS, PSnapshot, p_density
+from rigctl.analysis.contact_stress import PSnapshot
 from rigctl.analysis.figures_mech import colour, save
 from rigctl.analysis.stickslip import PassRecord
 from rigctl.analysis.surface_psd import SurfacePsd
+from rigctl.records.contact_profile import MODEL_BINS, p_density
 
 MAX_ROWS = 1500
 ISUM_LINEAR_BELOW_N = 300.0

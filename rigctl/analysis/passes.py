@@ -5,7 +5,7 @@ sweep one per normal force (Sec. 4.1), a simulated or imported run usually one. 
 from rest, so it has its own initial stage (paper Sec. 3.1).
 
 The passes are read from the drive the workbench simplifies every run to
-(:func:`rigctl.workbench.drive_profile.drive_profile`): a pass is a run of consecutive forward-sliding
+(:func:`rigctl.records.drive_profile.drive_profile`): a pass is a run of consecutive forward-sliding
 phases whose normal force stays above the "apart" level (:func:`fn_apart_N`) at both ends. Creep
 phases slower than ``MIN_SPEED_FRACTION`` of the run's fastest loaded slide (a stage settling while
 the load is released) are not slides. A pass's samples run from up to ``REST_BEFORE_S`` before the
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigctl.data import DataError, MeasuredRun
-from rigctl.workbench.drive_profile import DriveProfile, drive_profile, fn_apart_N
+from rigctl.records.drive_profile import DriveProfile, drive_profile, fn_apart_N
 
 MIN_SPEED_FRACTION = 0.02
 REST_BEFORE_S = 2.0

@@ -22,7 +22,6 @@ import numpy as np
 
 from rigctl.analysis.contact_run import ContactAnalysis, analyse_contact
 from rigctl.analysis.mechanics import Mechanics, analyse_mechanics
-from rigctl.analysis.progress import SILENT, Progress
 from rigctl.analysis.repeatability import (
     Loading,
     Repeated,
@@ -36,7 +35,8 @@ from rigctl.analysis.source import RunSource, open_source
 from rigctl.analysis.sweep import SweepSummary, summarise, sweep_point
 from rigctl.data import DataError
 from rigctl.io.load import expand_paths
-from rigctl.workbench.drive_profile import fn_apart_N
+from rigctl.records.drive_profile import fn_apart_N
+from rigctl.records.progress import SILENT, Progress
 
 
 @dataclass

@@ -22,11 +22,11 @@ from rigctl.analysis import figures_mech, figures_sweep
 from rigctl.analysis.contact_report import contact_sections
 from rigctl.analysis.friction import Coefficient
 from rigctl.analysis.pipeline import CampaignAnalysis, RunAnalysis
-from rigctl.analysis.progress import SILENT, Progress
 from rigctl.analysis.repeatability import Repeated
 from rigctl.analysis.sweep import SweepSummary
 from rigctl.io.atomic import atomic_text_writer
 from rigctl.io.json_values import jsonable
+from rigctl.records.progress import SILENT, Progress
 
 _ENV = jinja2.Environment(
     loader=jinja2.PackageLoader("rigctl.analysis", "templates"),

@@ -1,8 +1,8 @@
 """Stages and stick/slip cycles of one tangential pass (paper Sec. 3.1, Fig. 5).
 
 Slips are found by the project's one slip detector, the workbench's
-(:func:`rigctl.workbench.dataset.prepare_run`: :mod:`rigctl.workbench.events` for the drops and
-:mod:`rigctl.workbench.features` for their levels), so the analysis and ``rigctl model compare``
+(:func:`rigctl.records.dataset.prepare_run`: :mod:`rigctl.records.events` for the drops and
+:mod:`rigctl.records.features` for their levels), so the analysis and ``rigctl model compare``
 read the same events. Every slip ends a stick; cycle i is the stick that ends in slip i and the slip
 itself:
 
@@ -36,8 +36,8 @@ import numpy as np
 
 from rigctl.analysis.passes import Pass
 from rigctl.data import DataError, FloatArray, MeasuredRun
-from rigctl.workbench.dataset import PreparedRun, prepare_run
-from rigctl.workbench.probe_range import probe_range
+from rigctl.records.dataset import PreparedRun, prepare_run
+from rigctl.records.probe_range import probe_range
 
 STAGE_INITIAL = "initial"
 STAGE_STABLE = "stable"

@@ -15,14 +15,14 @@ The estimator (one slope per band), robust to the noise of both signals:
 2. the compliance ``c = d(delta)/dFt`` is the least-squares slope of delta on Ft over all samples in
    the band (Ft is the regressor: its relative noise is the smaller one), refitted once without the
    samples whose residual exceeds 4 robust standard deviations (a probe glitch, a stray sample);
-3. Ft carries white noise of RMS ``sigma_f`` (:func:`rigctl.workbench.signals.noise_sigma`), which
+3. Ft carries white noise of RMS ``sigma_f`` (:func:`rigctl.records.signals.noise_sigma`), which
    attenuates a least-squares slope by the reliability ratio ``1 - sigma_f^2 / var(Ft)`` (errors in
    variables; Fuller, *Measurement Error Models*, 1987, Sec. 1.1); ``c`` is divided by it, and a band
    whose force range is under 6 ``sigma_f`` (attenuation above ~10 %) gives NaN;
 4. ``K = 1 / c`` with its standard error ``sigma_d / (c^2 sqrt(sum (Ft - mean)^2))`` from the white
-   noise ``sigma_d`` of delta (:func:`rigctl.workbench.signals.slope_se`).
+   noise ``sigma_d`` of delta (:func:`rigctl.records.signals.slope_se`).
 
-Samples where a displacement probe was over range (:mod:`rigctl.workbench.probe_range`) are left out;
+Samples where a displacement probe was over range (:mod:`rigctl.records.probe_range`) are left out;
 a band without enough valid samples gives NaN.
 """
 
@@ -35,7 +35,7 @@ import numpy as np
 
 from rigctl.analysis.stickslip import PassRecord
 from rigctl.data import FloatArray
-from rigctl.workbench.signals import noise_sigma, slope_se
+from rigctl.records.signals import noise_sigma, slope_se
 
 N_BANDS = 9
 BAND_EDGES: tuple[float, float] = (0.05, 0.95)

@@ -35,9 +35,9 @@ def _default_out(first: str) -> Path:
 
 def run_analyse(args: argparse.Namespace) -> int:
     from rigctl.analysis.pipeline import analyse_campaign
-    from rigctl.analysis.progress import Progress
     from rigctl.analysis.report import campaign_json, write_report
     from rigctl.io.outputs import check_output_folder
+    from rigctl.records.progress import Progress
 
     progress = Progress(False if args.json else None)
     out = args.out if args.out is not None else _default_out(args.data[0])

@@ -106,9 +106,9 @@ def _choice(args: argparse.Namespace) -> Any:
 
 
 def _load(args: argparse.Namespace) -> list[Any]:
-    """The runs named, long records cut into windows (rigctl.workbench.long_records)."""
+    """The runs named, long records cut into windows (rigctl.records.long_records)."""
     from rigctl.io.load import load_runs
-    from rigctl.workbench.long_records import window_long_runs
+    from rigctl.records.long_records import window_long_runs
 
     return window_long_runs(load_runs([str(p) for p in args.data]))
 
@@ -144,7 +144,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def _print_compare(cmp: Any) -> None:
-    from rigctl.workbench.feature_info import FEATURES
+    from rigctl.records.feature_info import FEATURES
 
     n_model = sum(m.n for m in cmp.evaluation.events)
     print(f"model {cmp.fit.choice.label()}: error {cmp.fit.error:.3g} "
@@ -199,8 +199,8 @@ def scheduler_security(args: argparse.Namespace) -> Any:
 
 
 def run_diagnose(args: argparse.Namespace) -> int:
+    from rigctl.records.dataset import prepare_dataset
     from rigctl.workbench.compare import compare
-    from rigctl.workbench.dataset import prepare_dataset
     from rigctl.workbench.diagnose import diagnose
     from rigctl.workbench.model_choice import candidate_effects, registry_for
     from rigctl.workbench.report import write_diagnose_report

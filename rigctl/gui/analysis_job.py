@@ -13,7 +13,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from rigctl.analysis.progress import Bar, Progress
+from rigctl.records.progress import Bar, Progress
 
 if TYPE_CHECKING:  # the worker process does not import Qt
     from rigctl.gui.process_job import Report
@@ -57,7 +57,7 @@ class _ReportBar(Bar):
 
 
 class ReportProgress(Progress):
-    """:class:`~rigctl.analysis.progress.Progress` whose bars go to a :data:`Report`."""
+    """:class:`~rigctl.records.progress.Progress` whose bars go to a :data:`Report`."""
 
     def __init__(self, report: Report) -> None:
         super().__init__(False)

@@ -1,17 +1,17 @@
 """P(x) of the newest camera image for the Live tab, as the run analysis defines it.
 
-The run analysis (:mod:`rigctl.analysis.contact_intensity`, :mod:`rigctl.analysis.contact_stress`,
+The run analysis (:mod:`rigctl.records.contact_intensity`, :mod:`rigctl.analysis.contact_stress`,
 docs/analysis.md "Contact images") reads Han et al. 2022 Sec. 3.2 as: I(x, t) = sum over y of the
 dark-subtracted grey levels, x the normalised length of the **contact region** (0 = back end), kept
 in equal bins, and P(x, t) = I(x, t) normalised to a density (mean 1 over x). The Live tab shows
 the same quantity for the newest image, with the same functions:
 
-* the contact region and dark level come from :func:`~rigctl.analysis.contact_intensity.
+* the contact region and dark level come from :func:`~rigctl.records.contact_intensity.
   find_contact_region`, applied to the last ``RECENT`` images received (instead of frames spread over
   a recorded run), and are looked for again every ``REGION_EVERY`` images (the load changes the
   contact's extent);
-* I(x) is binned with :func:`~rigctl.analysis.contact_intensity.bin_matrix` and turned into P(x)
-  with :func:`~rigctl.analysis.contact_stress.p_density`.
+* I(x) is binned with :func:`~rigctl.records.contact_intensity.bin_matrix` and turned into P(x)
+  with :func:`~rigctl.records.contact_profile.p_density`.
 
 Images are the downsampled ones the run service sends, so the region is in their columns.
 """
@@ -24,14 +24,14 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from rigctl.analysis.contact_intensity import (
+from rigctl.data import DataError
+from rigctl.records.contact_intensity import (
     N_PROFILE_BINS,
     ContactRegion,
     bin_matrix,
     find_contact_region,
 )
-from rigctl.analysis.contact_stress import p_density
-from rigctl.data import DataError
+from rigctl.records.contact_profile import p_density
 from rigctl.storage.reader import RunReader
 
 RECENT = 8

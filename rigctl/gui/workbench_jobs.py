@@ -1,7 +1,7 @@
 """The Workbench tab's work, run in worker processes (:mod:`rigctl.gui.process_job`); no Qt here.
 
 Each job loads the runs as ``rigctl model`` does (:func:`rigctl.io.load.load_runs`, long records cut
-into windows by :func:`rigctl.workbench.long_records.window_long_runs`) and calls the workbench's
+into windows by :func:`rigctl.records.long_records.window_long_runs`) and calls the workbench's
 public functions: :func:`~rigctl.workbench.compare.compare` (``rigctl model compare``) and
 :func:`~rigctl.workbench.diagnose.diagnose` (``rigctl model diagnose``). What goes back to the window
 is small and picklable: overlays decimated to ``OVERLAY_POINTS`` per curve
@@ -112,7 +112,7 @@ class DiagnoseView:
 def load(paths: Sequence[str]) -> list[Any]:
     """The runs named (files or campaign folders), long records windowed, as ``rigctl model``."""
     from rigctl.io.load import load_runs
-    from rigctl.workbench.long_records import window_long_runs
+    from rigctl.records.long_records import window_long_runs
 
     return window_long_runs(load_runs(list(paths)))
 
@@ -133,7 +133,7 @@ def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, .
                  workers: int | None = None) -> DiagnoseView:
     """Rank candidate effects on ``request``'s model (``rigctl model diagnose``; default candidates:
     every library and plug-in effect the model does not have)."""
-    from rigctl.workbench.dataset import prepare_dataset
+    from rigctl.records.dataset import prepare_dataset
     from rigctl.workbench.diagnose import diagnose
     from rigctl.workbench.model_choice import candidate_effects
 
@@ -161,8 +161,8 @@ def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, .
 
 def compare_view(cmp: Comparison) -> CompareView:
     """What the tab needs of a :class:`~rigctl.workbench.compare.Comparison`."""
-    from rigctl.workbench.feature_info import FEATURES
-    from rigctl.workbench.features import COVARIATES, EVENT_FEATURES
+    from rigctl.records.feature_info import FEATURES
+    from rigctl.records.features import COVARIATES, EVENT_FEATURES
     from rigctl.workbench.residual_map import COVARIATE_NAMES, trend_matrix
 
     overlays = []

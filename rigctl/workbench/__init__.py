@@ -3,11 +3,9 @@
 The pipeline, one module per step (docs/workbench.md tells the why of each):
 
 read
-    :mod:`~rigctl.workbench.dataset` checks runs and makes a campaign ready: the drive simplified
-    (:mod:`~rigctl.workbench.drive_profile`), the slips found (:mod:`~rigctl.workbench.events`) and
-    measured (:mod:`~rigctl.workbench.features`, :mod:`~rigctl.workbench.feature_info`), probes over
-    range or absent (:mod:`~rigctl.workbench.probe_range`), the rig description that came with the
-    data (:mod:`~rigctl.workbench.rig_description`), the scatter each feature is measured in.
+    :mod:`rigctl.records` reads the runs (checked, the drive simplified, the slips found and
+    measured, probes over range or absent, the rig description that came with the data, the
+    scatter each feature is measured in): the workbench and the analysis share it.
 score
     :mod:`~rigctl.workbench.evaluate` simulates the model on every run and reads it with the same
     eyes; :mod:`~rigctl.workbench.alignment` pairs model and measured slips;
@@ -29,8 +27,9 @@ report
     simulates campaigns for tests and benchmarks.
 
 The public API is below (``__all__``); everything else is free to change. Names are imported
-lazily, so that reading a run (``rigctl.workbench.probe_range`` from the analysis) does not load the
-fitting machinery.
+lazily, so that importing the package does not load the fitting machinery. ``Dataset``,
+``prepare_dataset`` and ``RigDescription`` live in :mod:`rigctl.records` and are re-exported here
+so that scripts written against ``rigctl.workbench`` keep working.
 """
 
 from __future__ import annotations
@@ -40,9 +39,9 @@ from typing import Any
 
 _API: dict[str, str] = {
     "ModelChoice": "rigctl.workbench.model_choice",
-    "Dataset": "rigctl.workbench.dataset",
-    "prepare_dataset": "rigctl.workbench.dataset",
-    "RigDescription": "rigctl.workbench.rig_description",
+    "Dataset": "rigctl.records.dataset",
+    "prepare_dataset": "rigctl.records.dataset",
+    "RigDescription": "rigctl.records.rig_description",
     "evaluate": "rigctl.workbench.evaluate",
     "identify_model": "rigctl.workbench.fitting",
     "fit_candidate": "rigctl.workbench.fitting",

@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigctl.workbench.drive_profile import DriveProfile
-from rigctl.workbench.features import EventTable
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.features import EventTable
 
 HOLD_TIE_S = 0.02
 """A slip this close after the start of a hold (the stop) is a tie with a slip at its end (the

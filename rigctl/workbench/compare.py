@@ -16,12 +16,12 @@ from typing import Any
 
 from rigctl.data import MeasuredRun
 from rigctl.model import SimResult
-from rigctl.workbench.dataset import Dataset, prepare_dataset, protocols_present
+from rigctl.records.dataset import Dataset, prepare_dataset, protocols_present
+from rigctl.records.feature_info import FEATURES
+from rigctl.records.image_features import model_ratios
 from rigctl.workbench.evaluate import Evaluation, evaluate
-from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.image_features import model_ratios
 from rigctl.workbench.metrics import FeatureError, physical_errors
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.residual_map import (
@@ -61,7 +61,7 @@ class Comparison:
 
     def image_rows(self) -> list[dict[str, Any]]:
         """Per run: the image features measured and of the model, the per-part load ratios r(k)
-        (:mod:`rigctl.workbench.image_features`), or why the run has none."""
+        (:mod:`rigctl.records.image_features`), or why the run has none."""
         rows: list[dict[str, Any]] = []
         images = self.evaluation.images or [{} for _ in self.dataset.runs]
         results: list[SimResult | None] = list(self.results) or [None] * len(self.dataset.runs)

@@ -16,7 +16,7 @@ the base parameters are set from what the measured events show directly (no simu
   and K0 follows; without delta the two are not separable and keep the preset's ratio Kts/K0 (the
   fit reports them as not determined).
 * **mass and damping** from a rig description (``m_kg``, ``c0_N_s_per_m``) where given; else from
-  the post-slip ringing where the sampling resolves it (:mod:`rigctl.workbench.ringing`): in stick
+  the post-slip ringing where the sampling resolves it (:mod:`rigctl.records.ringing`): in stick
   the mass rings between drive spring and interface, ``M = (K0 + Kts) / omega_n^2``, and decays at
   ``sigma = C0 / (2 M)``, so ``C0 = 2 sigma M``; else the mass keeps the preset's slip frequency
   sqrt(K0/M) (during a global slip every element slides and the mass swings on the drive spring
@@ -41,8 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rigctl.model.params import BASE_PARAMS
-from rigctl.workbench.features import EventTable
-from rigctl.workbench.ringing import Ringing, ringing_mass
+from rigctl.records.features import EventTable
+from rigctl.records.ringing import Ringing, ringing_mass
 
 PRESET = {s.name: float(s.default) for s in BASE_PARAMS}
 PRESET_FN_N = 300.0
@@ -106,7 +106,7 @@ class DataScale:
 def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
                   ringing: Ringing | None = None) -> DataScale:
     """The :class:`DataScale` of the measured events of a campaign (``ringing``: its post-slip
-    ringing, :func:`rigctl.workbench.ringing.campaign_ringing`).
+    ringing, :func:`rigctl.records.ringing.campaign_ringing`).
 
     dFt/d(delta) is read only where delta resolves the interface's give in stick: the stick
     windows' delta-on-Ft slopes (compliances) must come out positive in at least

@@ -20,11 +20,11 @@ import numpy as np
 
 from rigctl.errors import SimulationError
 from rigctl.model import MAX_NORMAL_FORCE_N, ParameterError
-from rigctl.workbench.dataset import Dataset, protocols_present
-from rigctl.workbench.drive_profile import DriveProfile
+from rigctl.records.dataset import Dataset, protocols_present
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.feature_info import FEATURES
 from rigctl.workbench.element_count import best_element_count
 from rigctl.workbench.evaluate import evaluate, simulate_run
-from rigctl.workbench.feature_info import FEATURES
 from rigctl.workbench.fitting import (
     FIT_ON_NFEV,
     CandidateTask,

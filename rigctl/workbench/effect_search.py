@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult, fn_range, free_params
 from rigctl.workbench.mass_search import RefitTask, best_end, refit_task, valid_start
 from rigctl.workbench.model_choice import ModelChoice

@@ -22,7 +22,7 @@ from typing import Any
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.model.effects import Effect
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult, free_params, least_squares_fit
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks

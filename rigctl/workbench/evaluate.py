@@ -1,8 +1,8 @@
 """Simulate a model on every run of a campaign and read its slips like the measurement's.
 
-Each run is simulated on its own simplified drive (:mod:`rigctl.workbench.drive_profile`) at the
+Each run is simulated on its own simplified drive (:mod:`rigctl.records.drive_profile`) at the
 run's own sample rate with :class:`rigctl.model.Simulator`, then read with the run's measured
-settings (:mod:`rigctl.workbench.features`), so model and measurement go through the same eyes.
+settings (:mod:`rigctl.records.features`), so model and measurement go through the same eyes.
 """
 
 from __future__ import annotations
@@ -12,15 +12,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigctl.model import Drive, ModelSpec, SimResult, Simulator
-from rigctl.workbench.dataset import Dataset, PreparedRun
-from rigctl.workbench.features import EventTable, extract_events
-from rigctl.workbench.image_features import model_image_numbers
+from rigctl.records.dataset import Dataset, PreparedRun
+from rigctl.records.features import EventTable, extract_events
+from rigctl.records.image_features import model_image_numbers
 from rigctl.workbench.metrics import Score, score
 from rigctl.workbench.model_choice import ModelChoice
 
 
 def model_drive(run: PreparedRun) -> Drive:
-    """The run's drive; with a lead-in (:func:`rigctl.workbench.dataset.lead_in`) the first
+    """The run's drive; with a lead-in (:func:`rigctl.records.dataset.lead_in`) the first
     segment is extended back by ``run.lead_in_s`` and the times shifted to start at 0."""
     d = run.drive
     if run.lead_in_s <= 0.0:

@@ -30,6 +30,8 @@ import numpy as np
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
+from rigctl.records.dataset import Dataset
+from rigctl.records.rig_description import check_names
 from rigctl.workbench.data_scale import (
     NEAR_PRESET,
     DataScale,
@@ -38,7 +40,6 @@ from rigctl.workbench.data_scale import (
     scale_effect_values,
     scale_ratios,
 )
-from rigctl.workbench.dataset import Dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
@@ -57,7 +58,6 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.metrics import Score
 from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.parallel import TaskFailed, run_tasks
-from rigctl.workbench.rig_description import check_names
 
 BASELINE_MAX_NFEV = 24  # solver evaluations for the model as given (its fit is done once)
 CANDIDATE_MAX_NFEV = 10  # per candidate start: a dozen candidates are fitted per round

@@ -19,9 +19,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
+from rigctl.records.features import EventTable
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.features import EventTable
 from rigctl.workbench.identify import FreeParam
 from rigctl.workbench.model_choice import ModelChoice
 

@@ -34,13 +34,13 @@ from scipy.optimize import least_squares
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError, ParamInfo
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
+from rigctl.records.rig_description import RigDescription
+from rigctl.records.ringing import ringing_mass
+from rigctl.records.signals import FloatArray
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.metrics import RunComparison
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.rig_description import RigDescription
-from rigctl.workbench.ringing import ringing_mass
-from rigctl.workbench.signals import FloatArray
 
 FD_STEP = 0.05  # first finite-difference step in internal units (5 % of a log parameter)
 FD_STEP_MIN = 1e-4  # smallest step: below it a stage count or a sample moves no feature
@@ -425,7 +425,7 @@ def _staircase(tried: Sequence[tuple[float, float, FloatArray]]) -> bool:
 def free_params(choice: ModelChoice, names: Sequence[str] | None = None,
                 rig: RigDescription | None = None) -> list[FreeParam]:
     """The parameters to fit: ``names``, or every parameter marked ``identify``; a rig description
-    (:mod:`rigctl.workbench.rig_description`) removes those it fixes and narrows those it bounds."""
+    (:mod:`rigctl.records.rig_description`) removes those it fixes and narrows those it bounds."""
     table = {p.name: p for p in choice.parameter_table()}
     if names is None:
         names = [p.name for p in table.values() if p.identify]

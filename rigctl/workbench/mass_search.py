@@ -14,7 +14,7 @@ stood, and 1.19 to 21.9 once the rest of the model was refitted there (0.3 g: 1.
 ratio, where it is free too) and keeps the best end that beats the model. Each point is a task of
 :func:`~rigctl.workbench.parallel.run_tasks`, so they fit in parallel. It applies only where the
 mass is free: not where the rig description states it, nor where the resolved ringing ties it to
-the stiffnesses (:attr:`~rigctl.workbench.dataset.Dataset.mass_from_ringing`).
+the stiffnesses (:attr:`~rigctl.records.dataset.Dataset.mass_from_ringing`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import (
     FitResult,
     fn_range,

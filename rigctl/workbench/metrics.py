@@ -1,6 +1,6 @@
 """The event-aware error between a model and a measured campaign.
 
-Per paired slip (:mod:`rigctl.workbench.alignment`) and feature (:mod:`rigctl.workbench.features`)
+Per paired slip (:mod:`rigctl.workbench.alignment`) and feature (:mod:`rigctl.records.features`)
 the residual is ``model - measured`` (``ln(model / measured)`` for durations, rates and
 stiffnesses). It is expressed in units of the feature's event-to-event scatter in the measurement
 (``Dataset.sigma``) and averaged over *blocks* of up to six consecutive slips of a drive segment (the
@@ -36,11 +36,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rigctl.records.dataset import Dataset, PreparedRun
+from rigctl.records.feature_info import FEATURES, IMAGE_FEATURES
+from rigctl.records.features import EVENT_FEATURES, EventTable
+from rigctl.records.signals import FloatArray
 from rigctl.workbench.alignment import match_events, spurious_counts, stand_in_pairs
-from rigctl.workbench.dataset import Dataset, PreparedRun
-from rigctl.workbench.feature_info import FEATURES, IMAGE_FEATURES
-from rigctl.workbench.features import EVENT_FEATURES, EventTable
-from rigctl.workbench.signals import FloatArray
 
 MISSING_EVENT_Z = 5.0
 MARGINAL_DROP_FRACTION = 0.5
@@ -64,7 +64,7 @@ class RunComparison:
     spurious: np.ndarray
     """Model slips per drive segment where the measurement has none."""
     image_residual: dict[str, float] = field(default_factory=dict)
-    """Image features (:mod:`rigctl.workbench.image_features`): model - measured; empty for a run
+    """Image features (:mod:`rigctl.records.image_features`): model - measured; empty for a run
     without frames."""
     stand_in: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Per measured event: compared with the model's first slip of its segment, which stands in for

@@ -37,7 +37,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from rigctl.workbench.dataset import Dataset
+from rigctl.records.dataset import Dataset
 from rigctl.workbench.effect_search import refit_over_effects
 from rigctl.workbench.fitting import SWITCHED_OFF, CandidateTask, fit_candidate, fit_on
 from rigctl.workbench.identify import FitResult

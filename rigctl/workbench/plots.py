@@ -15,9 +15,9 @@ import numpy as np
 
 from rigctl.data import MeasuredRun
 from rigctl.model import SimResult
-from rigctl.workbench.dataset import Dataset
-from rigctl.workbench.feature_info import FEATURES
-from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, EventTable
+from rigctl.records.dataset import Dataset
+from rigctl.records.feature_info import FEATURES
+from rigctl.records.features import COVARIATES, EVENT_FEATURES, EventTable
 from rigctl.workbench.ranking import CandidateScore
 from rigctl.workbench.residual_map import COVARIATE_NAMES, ResidualMap, trend_matrix
 
@@ -198,7 +198,7 @@ def error_fall(labels: Sequence[str], errors: Sequence[float], path: Path) -> Pa
 def image_ratios(rows: Sequence[dict[str, object]], path: Path) -> Path:
     """The contact images against the model's stress distribution, one panel per run with frames:
     the per-part load ratio r(k) of the initial to the stable stage read from the images at equal
-    light (dots) and the model's (line), with both tilts (:mod:`rigctl.workbench.image_features`)."""
+    light (dots) and the model's (line), with both tilts (:mod:`rigctl.records.image_features`)."""
     n = max(len(rows), 1)
     fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 3.6), squeeze=False)
     for ax, row in zip(axes[0], rows, strict=False):

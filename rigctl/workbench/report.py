@@ -7,10 +7,10 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from rigctl.records.feature_info import FEATURES
 from rigctl.workbench import plots
 from rigctl.workbench.compare import Comparison
 from rigctl.workbench.diagnose import Diagnosis
-from rigctl.workbench.feature_info import FEATURES
 
 _STYLE = """<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse;font-size:0.9em}td,th{border:1px solid #ccc;padding:3px 8px}

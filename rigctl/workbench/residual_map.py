@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigctl.workbench.dataset import Dataset
-from rigctl.workbench.feature_info import FEATURES
-from rigctl.workbench.features import COVARIATES, EVENT_FEATURES
+from rigctl.records.dataset import Dataset
+from rigctl.records.feature_info import FEATURES
+from rigctl.records.features import COVARIATES, EVENT_FEATURES
+from rigctl.records.signals import FloatArray
 from rigctl.workbench.metrics import RunComparison
-from rigctl.workbench.signals import FloatArray
 
 STICK_FEATURES = ("peak_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding", "lag_m")
 SLIP_FEATURES = ("trough_N", "drop_N", "ring_N", "step_frac", "slip_m", "drop_delay_s",

@@ -8,15 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rigctl.analysis.contact_intensity import (
+from rigctl.analysis.contact_stress import im_cycles, p_at_forces
+from rigctl.analysis.stiffness import NAN_SLOPE, CycleStiffness
+from rigctl.data import DataError
+from rigctl.records.contact_intensity import (
     ContactRegion,
     bin_matrix,
     find_contact_region,
     stream_intensity,
 )
-from rigctl.analysis.contact_stress import im_cycles, p_at_forces, p_bins, p_density
-from rigctl.analysis.stiffness import NAN_SLOPE, CycleStiffness
-from rigctl.data import DataError
+from rigctl.records.contact_profile import p_bins, p_density
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 from rigctl.storage.reader import RunReader

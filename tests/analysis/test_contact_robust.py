@@ -7,14 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rigctl.analysis.contact_intensity import (
+from rigctl.data import DataError
+from rigctl.records.contact_intensity import (
     ContactRegion,
     dark_level_of,
     find_contact_region,
     stream_intensity,
 )
-from rigctl.analysis.contact_stress import p_density
-from rigctl.data import DataError
+from rigctl.records.contact_profile import p_density
 from rigctl.storage.reader import RunReader
 from tests.analysis.test_contact_intensity import write_frames
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from rigctl.config.loader import default_config
 from rigctl.model import Drive, Simulator, build_model
+from rigctl.records.rig_description import campaign_description
 from rigctl.rigs import open_rig
-from rigctl.workbench.rig_description import campaign_description
 
 
 def test_the_simulated_rig_states_its_mass_and_damping() -> None:

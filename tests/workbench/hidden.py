@@ -12,8 +12,8 @@ import textwrap
 
 from rigctl.model import build_model
 from rigctl.model.effects import LIBRARY
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import Diagnosis, diagnose
 from rigctl.workbench.model_choice import ModelChoice
 

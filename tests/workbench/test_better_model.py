@@ -7,8 +7,8 @@ import pytest
 
 from rigctl.model import build_model
 from rigctl.model.effects import LIBRARY
+from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import Dataset, prepare_dataset
 from rigctl.workbench.diagnose import better_model
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult

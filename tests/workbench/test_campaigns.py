@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from rigctl.model import build_model, effect_names
+from rigctl.records.dataset import prepare_dataset, protocols_present
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, PROTOCOLS, protocol_runs, simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset, protocols_present
 
 
 def test_every_library_effect_has_a_revealing_protocol():

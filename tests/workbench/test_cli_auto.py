@@ -13,9 +13,9 @@ import pytest
 from rigctl.cli.main import main
 from rigctl.io.load import load_runs
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
 from rigctl.workbench.compare import compare
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ranking import Verdict, score_candidate

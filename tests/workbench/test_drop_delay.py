@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from tests.workbench.hidden import TEST_BASE
 
 RATE_HZ = 4096.0

@@ -13,9 +13,9 @@ import math
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import diagnose as dg
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ranking import Verdict, earns_its_place, excess_error

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import effect_search
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import fit_on
 from rigctl.workbench.identify import FitResult, free_params, least_squares_fit
 from rigctl.workbench.model_choice import ModelChoice

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from rigctl.model import build_model
 from rigctl.model.plugins import load_effect_file
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.hidden import PLUGIN, TEST_BASE

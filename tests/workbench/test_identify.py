@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import free_params, least_squares_fit, with_uncertainties
 from rigctl.workbench.model_choice import ModelChoice

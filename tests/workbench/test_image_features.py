@@ -20,11 +20,11 @@ import pytest
 from rigctl.cli.main import main
 from rigctl.data import MeasuredRun
 from rigctl.model import Drive, NoiseModel, Simulator, build_model
+from rigctl.records.dataset import Dataset, prepare_dataset
+from rigctl.records.feature_info import IMAGE_FEATURES
 from rigctl.storage.reader import RunReader
 from rigctl.workbench.compare import Comparison, compare
-from rigctl.workbench.dataset import Dataset, prepare_dataset
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.feature_info import IMAGE_FEATURES
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.report import write_compare_report
 from tests.analysis.contact_sim import write_with_frames

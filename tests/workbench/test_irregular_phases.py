@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rigctl.model import Drive, Simulator, build_model
-from rigctl.workbench.dataset import Dataset, prepare_dataset
+from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench.evaluate import evaluate
 
 PARAMS = {"mu_s": 0.14, "mu_k": 0.095, "kts_N_per_m": 0.8e6, "k0_N_per_m": 1.6e6,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rigctl.workbench.dataset import prepare_dataset
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.fitting import campaign_scale
 from tests.workbench.synth import LIGHT_RIG, light_rig_tlre
 

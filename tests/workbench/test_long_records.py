@@ -1,13 +1,13 @@
-"""Long records are compared on windows spread over them (rigctl.workbench.long_records)."""
+"""Long records are compared on windows spread over them (rigctl.records.long_records)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.long_records import window_long_runs
 from rigctl.workbench.compare import compare
-from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.long_records import window_long_runs
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.synth import ANOTHER_RIG as R
 from tests.workbench.synth import another_rig_record as _record

@@ -7,6 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from rigctl.records.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.events import DetectionSettings
+from rigctl.records.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
 from rigctl.workbench.alignment import (
     HOLD_TIE_S,
     match_events,
@@ -14,10 +18,6 @@ from rigctl.workbench.alignment import (
     spurious_counts,
     stand_in_pairs,
 )
-from rigctl.workbench.dataset import BLOCK_SIZE, Dataset, PreparedRun, _blocks
-from rigctl.workbench.drive_profile import DriveProfile
-from rigctl.workbench.events import DetectionSettings
-from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
 from rigctl.workbench.identify import misses_most_slips
 from rigctl.workbench.metrics import MISSING_EVENT_Z, physical_errors, score
 from rigctl.workbench.residual_map import _event_table

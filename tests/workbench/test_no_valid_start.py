@@ -5,9 +5,9 @@ time limit)."""
 from __future__ import annotations
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import fitting
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.fitting import SWITCHED_OFF, CandidateTask, fit_candidate
 from rigctl.workbench.identify import FitResult

@@ -7,8 +7,8 @@ import os
 
 import pytest
 
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import fitting
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.synth import another_rig_record

@@ -8,9 +8,9 @@ from __future__ import annotations
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import fitting
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 

@@ -13,13 +13,13 @@ import pytest
 
 from rigctl.data import MeasuredRun
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.probe_range import probe_range
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import DaqLayout, RunDescription
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.compare import Comparison, compare
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.probe_range import probe_range
 
 TRUTH = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,
          "mu_smax": 0.21, "kt0_N_per_m": 1.7e6, "p_slope": 0.8}

@@ -15,3 +15,12 @@ def test_every_public_name_resolves() -> None:
 def test_an_unknown_name_is_an_attribute_error() -> None:
     with pytest.raises(AttributeError, match="no attribute 'fit'"):
         _ = wb.fit  # type: ignore[attr-defined]
+
+
+def test_names_moved_to_records_are_re_exported_unchanged() -> None:
+    from rigctl.records.dataset import Dataset, prepare_dataset
+    from rigctl.records.rig_description import RigDescription
+
+    assert wb.Dataset is Dataset
+    assert wb.prepare_dataset is prepare_dataset
+    assert wb.RigDescription is RigDescription

@@ -17,8 +17,8 @@ import pytest
 
 from rigctl.data import DataError
 from rigctl.io.load import load_runs
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.compare import compare
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
 

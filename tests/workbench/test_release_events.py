@@ -10,8 +10,8 @@ import pytest
 from rigctl.data import MeasuredRun
 from rigctl.model import Simulator, build_model
 from rigctl.model.drive import Drive
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.compare import compare
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.model_choice import ModelChoice
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigctl.workbench.dataset import Dataset, PreparedRun, _blocks
-from rigctl.workbench.drive_profile import DriveProfile
-from rigctl.workbench.events import DetectionSettings
-from rigctl.workbench.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
+from rigctl.records.dataset import Dataset, PreparedRun, _blocks
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.events import DetectionSettings
+from rigctl.records.features import COVARIATES, EVENT_FEATURES, INIT_BANDS, EventTable, ReadSettings
 from rigctl.workbench.metrics import RunComparison
 from rigctl.workbench.residual_map import discrepancies, residual_map
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.ringing import RingFit, Ringing, campaign_ringing, fit_ring
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.data_scale import PRESET, DataScale, base_start
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.fitting import campaign_scale, data_scaled, identify_model
 from rigctl.workbench.identify import Objective, free_params
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, fit_ring
 from tests.workbench.synth import sawtooth_run
 
 # a heavy slider on a soft drive: it rings at 64 Hz in stick (32 Hz on the drive spring alone

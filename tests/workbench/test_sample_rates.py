@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.compare import compare
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.synth import ANOTHER_RIG as R
 from tests.workbench.synth import another_rig_record

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rigctl.model import Drive, Simulator, build_model
-from rigctl.workbench.dataset import Dataset, prepare_dataset
+from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench.evaluate import evaluate
 
 PARAMS = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,

@@ -15,8 +15,8 @@ import pytest
 
 from rigctl.model import Drive, Simulator, build_model
 from rigctl.model.noise import NoiseModel
+from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import misses_most_slips

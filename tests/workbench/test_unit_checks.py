@@ -10,9 +10,9 @@ import pytest
 
 from rigctl.data import MeasuredRun
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.unit_checks import UNIT_NOTE
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.unit_checks import UNIT_NOTE
 
 
 @pytest.fixture(scope="module")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.features import _stick_duration
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.drive_profile import DriveProfile
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.features import _stick_duration
 from rigctl.workbench.model_choice import ModelChoice
 
 BASE = {"mu_s": 0.13, "mu_k": 0.09, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.3e6}
