@@ -3,7 +3,7 @@
 A run is an HDF5 run file (docs/run-file.md) or an exchange-format CSV (another rig, no frames).
 :func:`open_source` reads the samples (SWMR: a run still being written is read up to its last
 flushed sample) and checks the camera stream without loading it: frames are streamed later
-(:mod:`rigctl.analysis.contact_frames`). Whatever cannot be analysed is said in :attr:`RunSource.notes`
+(:mod:`rigctl.records.contact_frames`). Whatever cannot be analysed is said in :attr:`RunSource.notes`
 (one sentence each), never raised as a traceback: no frames, frames without times, a run that did
 not close (a recorder killed by SIGKILL leaves ``status = running``). Files that cannot be read at
 all raise :class:`rigctl.data.DataError` with one line naming the file.
