@@ -17,6 +17,7 @@ from multiprocessing.connection import Client, Connection
 from typing import Any
 
 from rigctl.errors import DeviceError
+from rigctl.runservice.private import ServiceFolderError, check_private_folder
 from rigctl.runservice.server import service_alive
 from rigctl.runservice.wire import Address, default_address
 
@@ -35,6 +36,10 @@ def spawn_service(address: Address, backend: str, speed_text: str, config_path: 
                   extra: list[str] | None = None) -> subprocess.Popen[bytes]:
     """Start ``python -m rigctl.runservice`` in a new session (a signal to our group does not reach it)."""
     address.directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+    try:
+        check_private_folder(address.directory)  # said here, not only in the service's log
+    except ServiceFolderError as exc:
+        raise ServiceStartError(str(exc)) from None
     cmd = [sys.executable, "-m", "rigctl.runservice", "--backend", backend, "--speed", speed_text,
            "--dir", str(address.directory), *(extra or [])]
     if config_path:

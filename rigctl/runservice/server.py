@@ -9,7 +9,8 @@ new session (so a signal to the GUI's process group does not reach it), or by ha
 * One rig, opened at start (``rigctl.rigs.open_rig``) and closed at exit.
 * One run at a time, in a worker thread, built exactly as ``rigctl run`` builds it (same Runner,
   layouts, force limit, description with ``started_from`` in the metadata).
-* Clients (any number) connect over a Unix socket (:mod:`rigctl.runservice.wire`). Each has a sender
+* Clients (any number) connect over a Unix socket (:mod:`rigctl.runservice.wire`), each
+  authenticated in its own thread within 5 s (:mod:`rigctl.runservice.auth`). Each has a sender
   thread with its own bounded queue: a slow or frozen client loses its own live data (counted), never
   delays the run or other clients; control messages (plan, progress, outcome) are never dropped.
 * A client that disappears mid-run changes nothing, unless ``--orphan abort``: then the run is aborted
@@ -44,10 +45,13 @@ from rigctl.acquisition import Acquisition
 from rigctl.config import RigConfig
 from rigctl.errors import InputError
 from rigctl.rigs import OpenRig, open_rig
+from rigctl.runservice.auth import authenticate
 from rigctl.runservice.culprits import refusal_culprits
 from rigctl.runservice.devices import RigSnapshot, jog, reset_emergency_stop, snapshot
 from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import start_forwarding
+from rigctl.runservice.messages import command_problem
+from rigctl.runservice.private import ServiceFolderError, check_private_folder
 from rigctl.runservice.queue import RunQueue
 from rigctl.runservice.wire import LIVE_COLUMNS, Address, JobSpec, RunResult, ServiceState
 
@@ -112,14 +116,32 @@ class _ClientLink:
                 return
 
     def _read_loop(self) -> None:
+        """Commands in until the connection ends; a malformed one is answered with one error line
+        (:mod:`rigctl.runservice.messages`) and the connection goes on."""
         try:
             while True:
-                kind, payload = self.conn.recv()
-                self.service.command(kind, payload, self)
-        except (OSError, EOFError, ValueError, TypeError):
-            pass
+                try:
+                    message = self.conn.recv()
+                except (OSError, EOFError):
+                    return
+                except Exception as exc:  # a message that does not unpickle (it was read whole)
+                    self._refuse(f"cannot be read ({type(exc).__name__}: {exc})")
+                    continue
+                problem = command_problem(message)
+                if problem is not None:
+                    self._refuse(problem)
+                    continue
+                kind, payload = message
+                try:
+                    self.service.command(kind, payload, self)
+                except Exception as exc:  # a payload of the wrong shape for its command
+                    self._refuse(f"{kind!r} failed: {type(exc).__name__}: {exc}")
         finally:
             self.close()
+
+    def _refuse(self, problem: str) -> None:
+        _log.warning("malformed message from a client: %s", problem)
+        self.send("log", ("error", f"run service: malformed message refused: {problem}"))
 
     def close(self) -> None:
         with self._cond:
@@ -169,9 +191,12 @@ class RunService:
         key = self.address.new_key()
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.address.socket)
-        self._listener = Listener(self.address.socket, family="AF_UNIX", authkey=key)
+        # no authkey here: accept() would run the challenge itself, and one connection that never
+        # answers it would block every other client; each is authenticated in its own thread
+        self._listener = Listener(self.address.socket, family="AF_UNIX")
         os.chmod(self.address.socket, 0o600)
-        threading.Thread(target=self._accept_loop, name="runservice-accept", daemon=True).start()
+        threading.Thread(target=self._accept_loop, args=(key,), name="runservice-accept",
+                         daemon=True).start()
         self._log("info", f"run service {os.getpid()} on {self.backend} ({self.address.socket})")
         try:
             while not self._stop.wait(0.2):
@@ -221,19 +246,31 @@ class RunService:
             self._log("info", "idle with no client: stopping")
             self._stop.set()
 
-    def _accept_loop(self) -> None:
+    def _accept_loop(self, key: bytes) -> None:
         assert self._listener is not None
         while not self._stop.is_set():
             try:
                 conn = self._listener.accept()
-            except Exception:  # closed listener, failed handshake
+            except Exception:  # closed listener
                 if self._stop.is_set():
                     return
                 continue
-            link = _ClientLink(conn, self)
-            with self._lock:
-                self._clients.append(link)
-            link.send("hello", self.state)
+            threading.Thread(target=self._admit, args=(conn, key), name="runservice-auth",
+                             daemon=True).start()
+
+    def _admit(self, conn: Connection, key: bytes) -> None:
+        """Authenticate one connection (within AUTH_TIMEOUT_S), then serve it as a client."""
+        refused = authenticate(conn, key)
+        if refused is not None:
+            _log.warning("a connection %s; closed", refused)
+            return
+        if self._stop.is_set():
+            conn.close()
+            return
+        link = _ClientLink(conn, self)
+        with self._lock:
+            self._clients.append(link)
+        link.send("hello", self.state)
 
     def client_gone(self, link: _ClientLink) -> None:
         with self._lock:
@@ -568,6 +605,12 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     address = Address(Path(args.dir)) if args.dir else default_address()
+    try:  # before the rig opens: a folder others may write is refused (runservice/private.py)
+        address.directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+        check_private_folder(address.directory)
+    except (OSError, ServiceFolderError) as exc:
+        print(f"rigctl runservice: error: {exc}", file=sys.stderr)
+        return 2
     if service_alive(address):
         print(f"rigctl runservice: error: a run service is already listening on {address.socket}",
               file=sys.stderr)

@@ -2,7 +2,9 @@
 
 The service listens on a Unix-domain socket through :mod:`multiprocessing.connection` (length-prefixed
 pickles, HMAC challenge with a per-service key stored next to the socket with mode 0600, so only the
-user who started it can connect). Messages are tuples ``(kind, payload)``.
+user who started it can connect; the folder must be that user's alone: :mod:`.private`). Messages
+are tuples ``(kind, payload)``; one that is not a known command with a payload of its kind is
+answered with an error line (:mod:`.messages`), the connection kept.
 
 Client to service: ``("start", JobSpec)``, ``("pause", None)``, ``("resume", None)``,
 ``("abort", reason)``, ``("estop", reason)``, ``("shutdown", None)``; the queue
@@ -20,11 +22,12 @@ up its display even when the queue, not the window, started it), ``("queue", Que
 from __future__ import annotations
 
 import os
-import secrets
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from rigctl.runservice.private import read_key, write_key
 
 RUNTIME_DIR_ENV = "RIGCTL_RUNTIME_DIR"
 SOCKET_NAME = "runservice.sock"
@@ -60,16 +63,14 @@ class Address:
         return self.directory / LOG_NAME
 
     def new_key(self) -> bytes:
-        """Write a fresh key (mode 0600) for a service about to listen here."""
+        """Write a fresh key (a new file, mode 0600) for a service about to listen here; the folder
+        must be this user's alone to write (:mod:`rigctl.runservice.private`)."""
         self.directory.mkdir(parents=True, exist_ok=True, mode=0o700)
-        key = secrets.token_bytes(32)
-        fd = os.open(self.key_file, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-        with os.fdopen(fd, "wb") as f:
-            f.write(key)
-        return key
+        return write_key(self.key_file)
 
     def key(self) -> bytes:
-        return self.key_file.read_bytes()
+        """The service's key, read only from this user's private folder and file."""
+        return read_key(self.key_file)
 
 
 def default_address() -> Address:
