@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -36,6 +37,13 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # A value starting with '-' and a digit (or -inf, -nan) is a value, not an option:
+        # `--velocity -1e-5` (Python 3.11's pattern knows no exponent and reads it as an option).
+        # No option of rigctl looks like a number. The pattern of CPython 3.13's argparse.
+        self._negative_number_matcher = re.compile(r"-\.?\d|-(inf|infinity|nan)$", re.IGNORECASE)
+
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(message)
 

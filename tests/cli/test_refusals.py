@@ -102,3 +102,21 @@ def test_a_parameter_given_twice_is_refused(capsys: pytest.CaptureFixture[str]) 
     assert main(["run", "tlre", "--dry-run", "--param", "fn_N=300", "--param", "fn_N=250"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--param fn_N is given twice (300 and 250)" in err, err
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    (["simulate", "--velocity", "-1e-5", "--duration", "0.5"], None),  # a value: runs
+    (["simulate", "--fn", "-1e2", "--duration", "0.5"], "--fn -100 N is outside"),
+    (["simulate", "--fn", "-inf"], "--fn: must be finite, got '-inf'"),
+    (["simulate", "--segments", "-5:1e-5"], "duration must be positive, got -5 s"),
+])
+def test_a_negative_number_is_a_value_not_an_option(argv: list[str], expected: str | None,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """`--velocity -1e-5` got argparse's "expected one argument" (its pattern knows no exponent)."""
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert "expected one argument" not in err, err
+    if expected is None:
+        assert rc == 0, err
+    else:
+        assert rc == 2 and err.count("\n") == 1 and expected in err, err
