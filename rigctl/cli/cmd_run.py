@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import signal
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
+from rigctl.cli.run_signals import RunSignals
+from rigctl.cli.streams import report, say, show
 from rigctl.errors import InputError, UsageError
 from rigctl.status import RunStatus
 
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from rigctl.io.outputs import check_output_file
     from rigctl.rigs import open_rig, parse_speed
 
-    early = _EarlySignals()
+    signals = RunSignals()  # before anything opens or moves (rigctl/cli/run_signals.py)
     protocol, origin = _protocol(args)
     if args.list_params:
         for d in protocol.params:
@@ -103,15 +103,16 @@ def run(args: argparse.Namespace) -> int:
             plan, _ = runner.plan()
         except PlanError as exc:
             raise UsageError(f"dry run refused: {exc}") from None
-        print(plan.summary())
+        lines = [plan.summary()]
         if speed != float("inf"):
-            print(f"wall time at speed {speed:g}: ~{plan.duration_s / speed:.0f} s")
-        print(_file_size_line(plan.duration_s, adapters.daq_layout(rig.config), camera,
-                              out if out is not None else Path(config.storage.directory) / "x"))
+            lines.append(f"wall time at speed {speed:g}: ~{plan.duration_s / speed:.0f} s")
+        lines.append(_file_size_line(plan.duration_s, adapters.daq_layout(rig.config), camera,
+                                     out if out is not None else Path(config.storage.directory) / "x"))
         if args.dry_run:
-            print("dry run: nothing moved")
+            show([*lines, "dry run: nothing moved"])  # a reader gone meanwhile: nothing moved
             return 0
-        _install_signals(runner, rig, early)
+        if not show(lines):  # its reader went away before the plan was shown (`... | true`)
+            raise UsageError(STDOUT_GONE)
         bar = None
         if sys.stderr.isatty():
             from rigctl.cli.progress import RunProgress
@@ -119,31 +120,51 @@ def run(args: argparse.Namespace) -> int:
             controls = runner.controls
             bar = RunProgress([st.estimate_s for st in plan.steps], speed,
                               lambda: controls.paused)
-            runner.progress = bar.on_step
+            runner.progress = _display_only(bar.on_step)
             on_acquisition.append(bar.attach)
+        signals.attach(runner, quiet_pause=bar is not None)  # from now on: safe state
         try:
             with _bar_logging(bar):
                 outcome = runner.run()
         finally:
+            signals.run_over()
             if bar is not None:
-                bar.close()
+                _display_only(bar.close)()
     if sys.stderr.isatty():
-        print(file=sys.stderr)
+        say("")
     st = outcome.stats
-    print(f"{outcome.status}: {outcome.path} ({outcome.wall_s:.1f} s wall)")
+    lines = [f"{outcome.status}: {outcome.path} ({outcome.wall_s:.1f} s wall)"]
     if st is not None:
-        print(f"samples {st.daq_samples}, dropped {st.daq_dropped + st.queue_dropped_samples}, "
-              f"frames {st.frames} (dropped {st.frames_dropped + st.queue_dropped_frames}), "
-              f"events {st.events}, writer lag max {st.writer_lag_max_s:.3f} s")
+        lines.append(f"samples {st.daq_samples}, dropped {st.daq_dropped + st.queue_dropped_samples}, "
+                     f"frames {st.frames} (dropped {st.frames_dropped + st.queue_dropped_frames}), "
+                     f"events {st.events}, writer lag max {st.writer_lag_max_s:.3f} s")
         rate_hz = rig.config.daq.sample_rate_hz
         for channel, n in sorted(st.probe_over_range_samples.items()):
-            print(f"note: {channel} over range for {n} samples ({n / rate_hz:.1f} s): the slide "
-                  "carried the specimen past the probe's short range around its zero; those "
-                  "samples are recorded at the rail, marked 'probe_over_range' in the events and "
-                  "left out of every delta analysis (docs/experiments.md, 'Probes over range')")
+            lines.append(
+                f"note: {channel} over range for {n} samples ({n / rate_hz:.1f} s): the slide "
+                "carried the specimen past the probe's short range around its zero; those "
+                "samples are recorded at the rail, marked 'probe_over_range' in the events and "
+                "left out of every delta analysis (docs/experiments.md, 'Probes over range')")
+    report(lines)  # to stderr if stdout has gone meanwhile: the exit code stays the run's
     if outcome.error:
-        print(f"error: {outcome.error}", file=sys.stderr)
-    return {RunStatus.COMPLETED: 0, RunStatus.ABORTED: 130}.get(outcome.status, 1)
+        say(f"error: {outcome.error}")
+    return {RunStatus.COMPLETED: 0, RunStatus.ABORTED: signals.exit_code}.get(outcome.status, 1)
+
+
+STDOUT_GONE = ("standard output is closed (its reader went away) before the run started: nothing "
+               "moved, no run file; give the run a terminal, a file or a reader that stays")
+"""Why a run whose stdout has gone before motion is refused: the plan it prints is what the
+operator or the scheduler sees of what the rig is about to do; nobody saw it. Once the rig moves a
+closed stdout no longer matters: the run goes on to its end and its report goes to stderr."""
+
+
+def _display_only(fn: Callable[..., None]) -> Callable[..., None]:
+    """``fn`` for a display: a terminal that has gone (hung up) never stops the run."""
+    def call(*args: Any) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            fn(*args)
+
+    return call
 
 
 def _protocol(args: argparse.Namespace) -> tuple[Protocol[Any], ProtocolFile | None]:
@@ -209,68 +230,3 @@ def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:
         raise UsageError(f"{text}: not enough (with {DEFAULT_MIN_FREE_BYTES / 1e6:.0f} MB to "
                          "spare): free space, choose another --out, or --no-camera")
     return text
-
-
-class _EarlySignals:
-    """Pause/resume asked before the run exists (while the rig starts): kept, applied at the start.
-
-    Installed before anything opens or moves, so that SIGUSR1/SIGUSR2 never kill the command
-    (their default action) and a pause asked early is not lost."""
-
-    def __init__(self) -> None:
-        self.paused = False
-        signal.signal(signal.SIGUSR1, self._pause)
-        signal.signal(signal.SIGUSR2, self._resume)
-
-    def _pause(self, signum: int, frame: FrameType | None) -> None:
-        self.paused = True
-        print("pause asked while the rig starts: the run will start paused (SIGUSR2 resumes)",
-              file=sys.stderr, flush=True)
-
-    def _resume(self, signum: int, frame: FrameType | None) -> None:
-        self.paused = False
-        print("resume asked while the rig starts", file=sys.stderr, flush=True)
-
-
-def _install_signals(runner: object, rig: object, early: _EarlySignals | None = None) -> None:
-    """Ctrl-C/SIGTERM abort; a second one escalates to the emergency stop of both stages (said on
-    the terminal; the run still ends in the runner, which records the outcome and closes the file
-    with its status); SIGUSR1 pause, SIGUSR2 resume."""
-    from experiments.runner import Runner
-
-    assert isinstance(runner, Runner)
-    count = [0]
-
-    def on_int(signum: int, frame: FrameType | None) -> None:
-        count[0] += 1
-        if count[0] == 1:
-            print("\ninterrupted: bringing the rig to a safe state (Ctrl-C again: emergency stop)",
-                  file=sys.stderr)
-            runner.controls.abort("interrupted (Ctrl-C)" if signum == signal.SIGINT
-                                  else f"terminated (signal {signum})")
-            return
-        print("\nsecond interrupt: EMERGENCY STOP of both stages; the run file is closed with "
-              "its status (a load the stop leaves on is reported)", file=sys.stderr)
-        for stage in (runner.devices.tangential_stage, runner.devices.normal_stage):
-            with contextlib.suppress(Exception):
-                stage.emergency_stop()
-        runner.controls.abort("interrupted twice (Ctrl-C): emergency stop")
-
-    signal.signal(signal.SIGINT, on_int)
-    signal.signal(signal.SIGTERM, on_int)
-    quiet = sys.stderr.isatty()  # on a terminal the progress bar says it
-
-    def pause(signum: int, frame: FrameType | None) -> None:
-        runner.controls.pause()
-        if not quiet:
-            print("paused (SIGUSR1; SIGUSR2 resumes)", file=sys.stderr, flush=True)
-
-    def resume(signum: int, frame: FrameType | None) -> None:
-        runner.controls.resume()
-        if not quiet:
-            print("resumed (SIGUSR2)", file=sys.stderr, flush=True)
-
-    signal.signal(signal.SIGUSR1, pause)
-    signal.signal(signal.SIGUSR2, resume)
-    if early is not None and early.paused:
-        runner.controls.pause()

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from rigctl import teardown
+from rigctl.cli.streams import discard_stdout, say
 from rigctl.errors import DeviceError, InputError, SimulationError, UsageError
 
 __all__ = ["COMMAND_MODULES", "UsageError", "build_parser", "main"]
@@ -60,16 +61,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 130 Ctrl-C,
-    143 SIGTERM during parallel candidate fits."""
+    """Run one command; the exit code: 0 ok, 1 failed run, 2 usage or data error, 128 + the
+    signal for a run ended by a signal (130 Ctrl-C, 129 SIGHUP, 131 SIGQUIT, 143 SIGTERM; also
+    SIGTERM during parallel candidate fits)."""
     try:
         rc = _main(argv)
         sys.stdout.flush()
     except BrokenPipeError:
         # the reader went away (`rigctl ... | head -1`): not an error of ours, and no traceback;
-        # stdout goes to /dev/null so that the interpreter's own final flush cannot fail again
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        # stdout goes to /dev/null so that the interpreter's own final flush cannot fail again.
+        # (`rigctl run` decides for itself: rigctl/cli/streams.py)
+        discard_stdout()
         return 0
     if teardown.unsafe_to_free() and argv is None:  # a run file's close failed (disk full...)
         # The HDF5 library may crash while freeing such a file at interpreter exit, turning exit
@@ -126,13 +128,14 @@ def _main(argv: Sequence[str] | None) -> int:
                   file=sys.stderr)
         return int(args.func(args))
     except InputError as exc:
-        print(f"rigctl: error: {exc}", file=sys.stderr)
+        say(f"rigctl: error: {exc}")
         return 2
     except (DeviceError, SimulationError) as exc:
-        print(f"rigctl: error: {exc}", file=sys.stderr)
+        say(f"rigctl: error: {exc}")
         return 1
-    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM while workers run (parallel.Terminated)
-        print(f"rigctl: {str(exc) or 'interrupted'}", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM while workers run (parallel.Terminated);
+        # a signal before a run started (run_signals.StoppedBeforeRun)
+        say(f"rigctl: {str(exc) or 'interrupted'}")
         return int(getattr(exc, "exit_code", 130))
 
 

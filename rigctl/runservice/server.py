@@ -16,8 +16,9 @@ new session (so a signal to the GUI's process group does not reach it), or by ha
 * A client that disappears mid-run changes nothing, unless ``--orphan abort``: then the run is aborted
   (safe state: tangential stage stopped, normal load released, file closed ``aborted``) once no client
   has been connected for ``--orphan-grace-s``.
-* SIGTERM/SIGINT abort the run (safe state) and stop the service; the service also stops by itself
-  after ``--idle-exit-s`` with no run and no client.
+* SIGTERM/SIGINT/SIGQUIT abort the run (safe state) and stop the service; SIGHUP (the terminal it
+  was started from closing) is ignored from the start: the run goes on. The service also stops by
+  itself after ``--idle-exit-s`` with no run and no client.
 """
 
 from __future__ import annotations
@@ -592,6 +593,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="a run whose last client went away: goes on (default) or is aborted")
     parser.add_argument("--orphan-grace-s", type=float, default=5.0)
     args = parser.parse_args(argv)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)  # a closed terminal never ends the service
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
     try:
         speed = parse_speed(args.speed)
@@ -627,8 +629,8 @@ def serve(backend: str, config: RigConfig, speed: float, address: Address, **kw:
         def on_signal(signum: int, frame: FrameType | None) -> None:
             service.stop(f"run service terminated (signal {signum})")
 
-        signal.signal(signal.SIGTERM, on_signal)
-        signal.signal(signal.SIGINT, on_signal)
+        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGQUIT):
+            signal.signal(signum, on_signal)
         signal.signal(signal.SIGHUP, signal.SIG_IGN)  # the terminal of the GUI that started it closing
         service.serve()
     return 0
