@@ -35,6 +35,7 @@ No worker outlives :func:`run_tasks` (local processes):
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import ctypes
 import ctypes.util
@@ -255,14 +256,40 @@ def _kill_all(started: Sequence[Any], running: dict[int, tuple[Any, Connection, 
 
 
 def connect(address: str, timeout_s: float = CONNECT_TIMEOUT_S, security: Any = None) -> Any:
-    """A ``distributed.Client`` of the scheduler at ``address`` (SchedulerError if unreachable);
-    ``security`` a ``distributed.Security`` for a ``tls://`` scheduler (docs/workbench.md)."""
+    """A ``distributed.Client`` of the scheduler at ``address`` (SchedulerError if unreachable or
+    silent for ``timeout_s``); ``security`` a ``distributed.Security`` for a ``tls://`` scheduler
+    (docs/workbench.md).
+
+    The scheduler is first asked for Dask's handshake within ``timeout_s``: ``Client(timeout=)``
+    bounds the TCP connection but not the handshake read after it, so a port that accepts and
+    never answers hung the command with no word (distributed 2026.8, ``comm.core.connect``)."""
     from distributed import Client
 
     try:
-        return Client(address, timeout=timeout_s, security=security)
-    except (OSError, TimeoutError, TypeError, ValueError) as exc:  # TypeError: tls:// without TLS
+        asyncio.run(_handshake(address, timeout_s, security))
+    except TimeoutError:
+        raise SchedulerError(f"the Dask scheduler at {address} did not answer within "
+                             f"{timeout_s:g} s (is it a Dask scheduler, and is it running?)") from None
+    except (OSError, TypeError, ValueError) as exc:  # TypeError: tls:// without TLS
         raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
+    try:
+        return Client(address, timeout=timeout_s, security=security)
+    except (OSError, TimeoutError, TypeError, ValueError) as exc:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
+
+
+async def _handshake(address: str, timeout_s: float, security: Any) -> None:
+    """Open a Dask connection to ``address`` and close it; TimeoutError past ``timeout_s``."""
+    from distributed.comm import connect as dask_connect
+
+    kwargs = security.get_connection_args("client") if security is not None else {}
+    comm = await asyncio.wait_for(dask_connect(address, timeout=timeout_s, **kwargs), timeout_s)
+    await comm.close()
+
+
+REMOTE_CALL_TIMEOUT_S = 60.0
+"""Longest wait for one call to the cluster after the tasks ran: a finished task's result, closing
+the client (a scheduler that stops answering must not hang the command)."""
 
 
 def _run_dask(
@@ -274,9 +301,10 @@ def _run_dask(
 
     own = not isinstance(scheduler, Client)
     client = connect(scheduler, min(timeout_s, CONNECT_TIMEOUT_S)) if own else scheduler
+    where = f"the Dask scheduler at {getattr(client.scheduler, 'address', scheduler)}"
     with _sigterm_raises(), contextlib.ExitStack() as cleanup:
         if own:
-            cleanup.callback(client.close)
+            cleanup.callback(client.close, timeout=REMOTE_CALL_TIMEOUT_S)
         futures: list[Future] = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         results: list[Any] = [None] * len(tasks)
@@ -286,7 +314,10 @@ def _run_dask(
                 i = index[fut.key]
                 done_keys.add(fut.key)
                 try:
-                    value: R | TaskFailed = fut.result()
+                    value: R | TaskFailed = fut.result(timeout=REMOTE_CALL_TIMEOUT_S)
+                except TimeoutError:
+                    value = TaskFailed(f"its result did not come from {where} within "
+                                       f"{REMOTE_CALL_TIMEOUT_S:.0f} s")
                 except Exception as exc:
                     value = TaskFailed(f"{type(exc).__name__}: {exc}")
                 results[i] = value
