@@ -20,6 +20,11 @@
 
 Results come back in task order; ``on_done(index, result)`` is called as each finishes.
 
+Each local worker runs one BLAS thread (``threadpoolctl``): numpy's OpenBLAS otherwise keeps a pool
+of one thread per core in every worker, and 2 workers ran 4 busy threads on 2 cores. The workers
+are the parallelism. A Dask worker process has one already (its nanny starts it with
+``OPENBLAS_NUM_THREADS=1``, Dask's ``distributed.nanny.pre-spawn-environ``).
+
 No worker outlives :func:`run_tasks` (local processes):
 
 * a worker that has sent its result but does not exit within ``EXIT_GRACE_S`` (a thread it started
@@ -50,6 +55,8 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
+
+from threadpoolctl import threadpool_limits
 
 from rigctl.errors import InputError
 
@@ -126,6 +133,7 @@ def _child(fn: Callable[[Any], Any], task: Any, conn: Connection, parent_pid: in
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's Terminated handler
     _die_with_parent(parent_pid)
+    threadpool_limits(1)  # for the worker's life: it is one of the parallel tasks
     try:
         payload: tuple[str, Any] = ("ok", fn(task))
     except BaseException as exc:  # report anything, the parent decides
