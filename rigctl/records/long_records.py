@@ -6,11 +6,11 @@ more than :data:`MAX_SLIPS` slips is therefore compared on :data:`N_WINDOWS` win
 ``MAX_SLIPS / N_WINDOWS`` consecutive slips, spread evenly over it by slip index (start, middle
 and end of the record are all seen: wear or drift shows as a difference between windows). Each
 window is cut from just after a slip's end and is read like any record that starts loaded: the
-model runs a lead-in first (:func:`rigctl.workbench.dataset.lead_in`). The windows are copies, so
+model runs a lead-in first (:func:`rigctl.records.dataset.lead_in`). The windows are copies, so
 the record's full arrays can be freed once cut; the comparison then costs the same for one hour
 as for ten.
 
-The slips are counted with the workbench's own detector (:func:`~rigctl.workbench.events.detect_slips`)
+The slips are counted with the workbench's own detector (:func:`~rigctl.records.events.detect_slips`)
 on the full record: one vectorised pass, about 0.1 s per million samples.
 """
 
@@ -21,8 +21,8 @@ from dataclasses import replace
 import numpy as np
 
 from rigctl.data import MeasuredRun
-from rigctl.workbench.drive_profile import drive_profile
-from rigctl.workbench.events import DetectionSettings, detect_slips
+from rigctl.records.drive_profile import drive_profile
+from rigctl.records.events import DetectionSettings, detect_slips
 
 MAX_SLIPS = 480
 """Slips of one record compared in full; above this the record is windowed (a 60 s record of

@@ -8,8 +8,8 @@ import pytest
 from rigctl.data import DataError
 from rigctl.io.load import load_runs
 from rigctl.model import build_model
+from rigctl.records.dataset import prepare_dataset, protocols_present
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
-from rigctl.workbench.dataset import prepare_dataset, protocols_present
 from tests.workbench.synth import sawtooth_run
 
 

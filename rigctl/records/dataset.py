@@ -17,9 +17,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rigctl.data import DataError, MeasuredRun
-from rigctl.workbench.drive_profile import DriveProfile, drive_profile
-from rigctl.workbench.events import DetectionSettings, detect_slips
-from rigctl.workbench.feature_info import (
+from rigctl.records.drive_profile import DriveProfile, drive_profile
+from rigctl.records.events import DetectionSettings, detect_slips
+from rigctl.records.feature_info import (
     FEATURES,
     FLOOR_FRACTION,
     INIT_FLOOR,
@@ -27,15 +27,15 @@ from rigctl.workbench.feature_info import (
     SAMPLE_FLOOR,
     UNIT_FLOOR,
 )
-from rigctl.workbench.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
-from rigctl.workbench.fn_coupling import campaign_coupling
-from rigctl.workbench.image_features import ImageFeatures, read_image_features
-from rigctl.workbench.long_records import WINDOW_KEY
-from rigctl.workbench.probe_range import probe_range
-from rigctl.workbench.rig_description import RigDescription, campaign_description
-from rigctl.workbench.ringing import RingFit, Ringing, campaign_ringing, run_ring_fits
-from rigctl.workbench.signals import FloatArray, noise_sigma
-from rigctl.workbench.unit_checks import unit_notes
+from rigctl.records.features import EVENT_FEATURES, EventTable, ReadSettings, extract_events
+from rigctl.records.fn_coupling import campaign_coupling
+from rigctl.records.image_features import ImageFeatures, read_image_features
+from rigctl.records.long_records import WINDOW_KEY
+from rigctl.records.probe_range import probe_range
+from rigctl.records.rig_description import RigDescription, campaign_description
+from rigctl.records.ringing import RingFit, Ringing, campaign_ringing, run_ring_fits
+from rigctl.records.signals import FloatArray, noise_sigma
+from rigctl.records.unit_checks import unit_notes
 
 BLOCK_SIZE = 6
 """Events per averaging block (the first event of each drive segment is a block of its own)."""
@@ -62,15 +62,15 @@ class PreparedRun:
     block_irregular: tuple[bool, ...] = ()
     """Per block: the later slips of an irregular phase (empty: no block is)."""
     delta_measured: bool = True
-    """False when the record has no displacement probes (:mod:`rigctl.workbench.probe_range`)."""
+    """False when the record has no displacement probes (:mod:`rigctl.records.probe_range`)."""
     lead_in_s: float = 0.0
     """Drive time the model runs before the record's first sample (:func:`lead_in`)."""
     image: ImageFeatures | None = None
-    """What the run's camera frames say (:mod:`rigctl.workbench.image_features`); None without."""
+    """What the run's camera frames say (:mod:`rigctl.records.image_features`); None without."""
     image_absent: str = ""
     """Why the run has no image feature ('' when it has one, or when images were not asked for)."""
     ring_fits: tuple[RingFit, ...] = ()
-    """The post-slip ringing after its slips (:mod:`rigctl.workbench.ringing`)."""
+    """The post-slip ringing after its slips (:mod:`rigctl.records.ringing`)."""
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class Dataset:
     """Per run and feature: the scatter each event is measured in (:func:`event_scatter`; fixed
     once for the campaign, read by every evaluation)."""
     rig: RigDescription = field(default_factory=RigDescription)
-    """What the data say about their rig (:mod:`rigctl.workbench.rig_description`)."""
+    """What the data say about their rig (:mod:`rigctl.records.rig_description`)."""
 
     def event_sigma(self, i_run: int, name: str) -> FloatArray:
         """The scatter each event of run ``i_run`` is measured in (``sigma`` where the dataset was
@@ -100,13 +100,13 @@ class Dataset:
 
     @property
     def ringing(self) -> Ringing:
-        """The campaign's post-slip ringing (:func:`rigctl.workbench.ringing.campaign_ringing`)."""
+        """The campaign's post-slip ringing (:func:`rigctl.records.ringing.campaign_ringing`)."""
         return campaign_ringing(f for r in self.runs for f in r.ring_fits)
 
     @property
     def mass_from_ringing(self) -> bool:
         """The mass follows the drive and interface stiffnesses at the measured ringing frequency
-        (:func:`rigctl.workbench.ringing.ringing_mass`): the ringing is resolved and the rig
+        (:func:`rigctl.records.ringing.ringing_mass`): the ringing is resolved and the rig
         description does not state the mass."""
         return "m_kg" not in self.rig.fixed and self.ringing.resolved
 
@@ -194,10 +194,10 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
     """Read one run; ``delta_measured=False`` (a rig description) treats it as having no probes.
 
     ``images``: also read the run file's camera frames once, streamed, into the image features
-    (:func:`rigctl.workbench.image_features.read_image_features`). ``ringing``: also fit the
-    post-slip ringing (:func:`rigctl.workbench.ringing.run_ring_fits`; a model's starting mass
+    (:func:`rigctl.records.image_features.read_image_features`). ``ringing``: also fit the
+    post-slip ringing (:func:`rigctl.records.ringing.run_ring_fits`; a model's starting mass
     and damping, not needed to analyse a run). ``coupling``: the campaign's dFn/dFt
-    (:func:`rigctl.workbench.drive_profile.drive_profile`)."""
+    (:func:`rigctl.records.drive_profile.drive_profile`)."""
     check_run(run)
     prof = drive_profile(run, coupling=coupling)
     t = run.t_s - run.t_s[0]

@@ -22,7 +22,7 @@ Readings (docs/analysis.md, "Contact images"):
 * I(x, t) is kept in ``n_bins`` equal bins of the normalised length (default 100; each image column
   split between the bins it overlaps), so a run of any length keeps ``4 n_bins`` bytes per frame.
 
-:func:`stream_intensity` reads the frames once, in chunks (:mod:`rigctl.analysis.contact_frames`).
+:func:`stream_intensity` reads the frames once, in chunks (:mod:`rigctl.records.contact_frames`).
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from rigctl.analysis.contact_frames import DEFAULT_CHUNK_BYTES, iter_frame_chunks
-from rigctl.analysis.progress import SILENT, Progress
 from rigctl.data import DataError, FloatArray
+from rigctl.records.contact_frames import DEFAULT_CHUNK_BYTES, iter_frame_chunks
+from rigctl.records.progress import SILENT, Progress
 from rigctl.storage.reader import RunReader
 
 N_PROFILE_BINS = 100

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rigctl.data import MeasuredRun
-from rigctl.workbench.signals import FloatArray, noise_sigma
+from rigctl.records.signals import FloatArray, noise_sigma
 
 PROBES: tuple[str, ...] = ("d1_m", "d2_m")
 MIN_SATURATED_S = 0.1

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigctl.data import MeasuredRun
-from rigctl.workbench.drive_profile import DriveProfile
+from rigctl.records.drive_profile import DriveProfile
 
 MIN_RATE_HZ = 10.0
 """Below this sample rate no slip is resolved (stick-slip records: 100 Hz to 20 kHz)."""

@@ -16,8 +16,8 @@ import h5py
 import numpy as np
 import pytest
 
-from rigctl.analysis.contact_frames import iter_frame_chunks
-from rigctl.analysis.frame_inflate import FrameDecoder, fletcher32, pipeline_of, why_not_fast
+from rigctl.records.contact_frames import iter_frame_chunks
+from rigctl.records.frame_inflate import FrameDecoder, fletcher32, pipeline_of, why_not_fast
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CAMERA, CameraLayout, DaqLayout, FrameCompression, RunDescription
 from rigctl.storage.reader import RunReader

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.events import split_ring_chains
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.events import split_ring_chains
 from tests.workbench.synth import LIGHT_RIG, light_rig_tlre
 
 

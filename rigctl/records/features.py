@@ -1,6 +1,6 @@
 """Per-event features of a run: what a stick-slip record is compared by.
 
-Each detected slip (:mod:`rigctl.workbench.events`) gets the features below, measured the same way on
+Each detected slip (:mod:`rigctl.records.events`) gets the features below, measured the same way on
 a measured record and on a simulated one. Levels are read from straight-line fits over windows of
 the stick on either side of the drop, evaluated at the drop time, never from single samples: the
 peak from the last part of the loading ramp, the trough as the *settled* post-slip level (the line
@@ -47,10 +47,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rigctl.workbench.drive_profile import DriveProfile
-from rigctl.workbench.events import DetectionSettings, SlipIndices, detect_slips
-from rigctl.workbench.feature_info import EVENT_FEATURES, SE_FEATURES
-from rigctl.workbench.signals import (
+from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.events import DetectionSettings, SlipIndices, detect_slips
+from rigctl.records.feature_info import EVENT_FEATURES, SE_FEATURES
+from rigctl.records.signals import (
     FloatArray,
     line_fit,
     noise_sigma,
@@ -158,7 +158,7 @@ def extract_events(
 ) -> EventTable:
     """Detect the slips of a record and measure their features (times relative to t_s[0]).
 
-    ``delta_valid`` (per sample, :mod:`rigctl.workbench.probe_range`): where False a probe was over
+    ``delta_valid`` (per sample, :mod:`rigctl.records.probe_range`): where False a probe was over
     range, and the delta features whose windows include such samples are left NaN (not compared).
 
     Steps: detect the slips; refine their drop times; per slip, its stick window

@@ -29,8 +29,8 @@ from functools import cached_property
 import numpy as np
 
 from rigctl.data import DataError, MeasuredRun
-from rigctl.workbench.fn_coupling import applied_normal_force
-from rigctl.workbench.signals import FloatArray, noise_sigma
+from rigctl.records.fn_coupling import applied_normal_force
+from rigctl.records.signals import FloatArray, noise_sigma
 
 HOLD_VELOCITY_FRACTION = 0.002
 """A segment whose speed is below this fraction of the run's sliding speed (``reference_speed``) is
@@ -49,7 +49,7 @@ class DriveProfile:
     t0_s: float
     """Absolute time of the run's first sample (the profile's t = 0)."""
     fn_per_ft: float = 0.0
-    """dFn/dFt taken out of the measured normal force (:mod:`rigctl.workbench.fn_coupling`; 0: none)."""
+    """dFn/dFt taken out of the measured normal force (:mod:`rigctl.records.fn_coupling`; 0: none)."""
 
     @property
     def velocity_m_per_s(self) -> FloatArray:
@@ -436,7 +436,7 @@ def _apart_intervals(t: FloatArray, fn: FloatArray) -> list[tuple[float, float]]
 def drive_profile(run: MeasuredRun, fn_tolerance_fraction: float = 0.03,
                   coupling: tuple[float, float] | None = None) -> DriveProfile:
     """The simplified drive of ``run`` (raises DataError if the stage never moves). ``coupling``:
-    the campaign's dFn/dFt and its standard error (:func:`~rigctl.workbench.fn_coupling.
+    the campaign's dFn/dFt and its standard error (:func:`~rigctl.records.fn_coupling.
     campaign_coupling`); None: read from this run."""
     t = run.t_s - run.t_s[0]
     x = run.x_stage_m

@@ -23,7 +23,7 @@ class FeatureInfo:
     spread of the measured values, not the successive-difference one (two records a fraction of a
     sample apart in slip timing give unrelated values)."""
     per_event: bool = True
-    """Read once per stick-slip cycle (an :class:`~rigctl.workbench.features.EventTable` column);
+    """Read once per stick-slip cycle (an :class:`~rigctl.records.features.EventTable` column);
     False for the initial-stage curve, read once per run."""
     from_slope: bool = False
     """Read from a fitted slope, whose per-event standard error the event table keeps."""
@@ -32,7 +32,7 @@ class FeatureInfo:
     side's values about their median over the run's paired events
     (:func:`rigctl.workbench.metrics.compare_run`)."""
     from_images: bool = False
-    """Read from the run file's camera frames (:mod:`rigctl.workbench.image_features`), once per
+    """Read from the run file's camera frames (:mod:`rigctl.records.image_features`), once per
     run; a run without frames has none."""
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rigctl.data import DataError, MeasuredRun
-from rigctl.workbench.drive_profile import drive_profile
+from rigctl.records.drive_profile import drive_profile
 
 
 def _run(x, fn, fs=1024.0, source="drive.csv"):

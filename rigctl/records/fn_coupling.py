@@ -1,6 +1,6 @@
 """The part of the measured normal force that follows the tangential force.
 
-A model's drive is the *applied* normal load (:class:`~rigctl.workbench.drive_profile.DriveProfile`).
+A model's drive is the *applied* normal load (:class:`~rigctl.records.drive_profile.DriveProfile`).
 Where the loading frame tilts with the tangential load, or the sensor's axes cross-talk, the
 measured Fn also moves with Ft: in the library's ``normal_coupling`` effect
 
@@ -31,7 +31,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from rigctl.workbench.signals import FloatArray, noise_sigma
+from rigctl.records.signals import FloatArray, noise_sigma
 
 SLIP_STEP_SIGMAS = 10.0
 """An Ft step (over a lag) this many noise sigmas of a one-sample step is part of a slip."""

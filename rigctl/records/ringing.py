@@ -19,7 +19,7 @@ The ringing is **resolved** in a slip when the damped sinusoid fitted after it (
   more slowly than in stick (omega_slip^2 = K0/M < omega_n^2): Ft falls along a half cosine,
   ``F_k + drop cos(omega_slip t)``, from the peak to half-way down in a quarter slip period, and
   by at most ``drop * omega_slip * dt`` in one sample. So the slip's steepest one-sample fall is at
-  most ``2 pi f dt`` of its drop (``step_frac``, :mod:`rigctl.workbench.features`), and its
+  most ``2 pi f dt`` of its drop (``step_frac``, :mod:`rigctl.records.features`), and its
   peak-to-half-way time at least a quarter ringing period (ALIAS_SLACK allows for the peak sample
   read late on a rounded top). A slip over within a sample followed by a ringing of ten samples
   per cycle is a kilohertz ringing folded down by the sampling (this rig's own: about 1.1 kHz at
@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import OptimizeWarning, curve_fit
 
-from rigctl.workbench.signals import FloatArray
+from rigctl.records.signals import FloatArray
 
 MIN_SAMPLES_PER_CYCLE = 5.0
 MIN_SNR = 5.0

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rigctl.analysis.contact_frames import chunk_frames, iter_frame_chunks, read_frame
-from rigctl.analysis.contact_intensity import ContactRegion, stream_intensity
 from rigctl.data import DataError
+from rigctl.records.contact_frames import chunk_frames, iter_frame_chunks, read_frame
+from rigctl.records.contact_intensity import ContactRegion, stream_intensity
 from rigctl.storage import RunWriter
 from rigctl.storage.layout import CameraLayout, DaqLayout, RunDescription
 from rigctl.storage.reader import RunReader

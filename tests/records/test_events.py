@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rigctl.workbench.drive_profile import drive_profile
-from rigctl.workbench.events import DetectionSettings, detect_slips
-from rigctl.workbench.features import ReadSettings, extract_events
+from rigctl.records.drive_profile import drive_profile
+from rigctl.records.events import DetectionSettings, detect_slips
+from rigctl.records.features import ReadSettings, extract_events
 from tests.workbench.synth import sawtooth_run
 
 

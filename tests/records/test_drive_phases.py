@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rigctl.data import MeasuredRun
-from rigctl.workbench.drive_profile import DriveProfile, drive_profile
+from rigctl.records.drive_profile import DriveProfile, drive_profile
 
 
 def _profile(t_knots, v_knots, fn=300.0, jitter_m=0.0, seed=3):

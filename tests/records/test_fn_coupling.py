@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from rigctl.model import Drive, Simulator, build_model
-from rigctl.workbench import fn_coupling
-from rigctl.workbench.dataset import prepare_dataset
-from rigctl.workbench.drive_profile import drive_profile
-from rigctl.workbench.fn_coupling import applied_normal_force, coupling_ratio
+from rigctl.records import fn_coupling
+from rigctl.records.dataset import prepare_dataset
+from rigctl.records.drive_profile import drive_profile
+from rigctl.records.fn_coupling import applied_normal_force, coupling_ratio
 
 
 def _run(kappa: float, seed: int = 5, *, seconds: float = 12.0, v_m_s: float = 2e-5,

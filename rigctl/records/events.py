@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rigctl.workbench.signals import FloatArray, noise_sigma, sliding_extreme
+from rigctl.records.signals import FloatArray, noise_sigma, sliding_extreme
 
 
 @dataclass(frozen=True)
@@ -90,7 +90,7 @@ def detect_slips(
     then judged by the force alone. ``v_drive_m_s`` (the stage velocity per sample, e.g. from the
     simplified drive) rejects drops while the stage moves against the force (stroke reversals),
     except where ``fn_N`` changes over the drop (a release of the normal load, which the
-    workbench pairs as such: :mod:`rigctl.workbench.features`).
+    workbench pairs as such: :mod:`rigctl.records.features`).
     """
     n = ft_N.shape[0]
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
@@ -287,7 +287,7 @@ def _against_the_force(v_drive_m_s: FloatArray, i_pk: int, i_end: int, sign: int
 
 LOAD_CHANGE = 0.25
 """Relative change of Fn around a drop that makes it a load change (as the release rule of
-:mod:`rigctl.workbench.features`), not a stroke reversal."""
+:mod:`rigctl.records.features`), not a stroke reversal."""
 
 
 def _load_changes(fn_N: FloatArray | None, i0: int, i1: int) -> bool:

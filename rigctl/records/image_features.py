@@ -31,7 +31,7 @@ between the frames of the upper and lower third of Ft in the stable stage at the
 the same difference of its own shares over the same frames (0 for ``stress_evolution``).
 
 Frames are read once, when the dataset is loaded, through the streamed intensity pass of
-:mod:`rigctl.analysis.contact_intensity` (bounded memory: 4 bytes per frame and profile bin); only
+:mod:`rigctl.records.contact_intensity` (bounded memory: 4 bytes per frame and profile bin); only
 the frame times and per-part numbers are kept. A run without frames has no image feature.
 """
 
@@ -47,10 +47,10 @@ from scipy.optimize import isotonic_regression
 
 from rigctl.data import DataError, MeasuredRun
 from rigctl.model import SimResult
-from rigctl.workbench.drive_profile import fn_apart_N
-from rigctl.workbench.feature_info import IMAGE_FEATURES
-from rigctl.workbench.features import EventTable, ReadSettings
-from rigctl.workbench.signals import FloatArray
+from rigctl.records.drive_profile import fn_apart_N
+from rigctl.records.feature_info import IMAGE_FEATURES
+from rigctl.records.features import EventTable, ReadSettings
+from rigctl.records.signals import FloatArray
 
 N_PARTS = 10
 """Parts of the contact along x (Sec. 5.1)."""
@@ -215,7 +215,7 @@ def tilt_of(r: FloatArray) -> tuple[float, float]:
 
 def part_matrix(n_elements: int, n_parts: int = N_PARTS) -> FloatArray:
     """(n_elements, n_parts): the share of element i (covering [i/N, (i+1)/N)) in part k."""
-    from rigctl.analysis.contact_intensity import bin_matrix  # light import; no cycle at load
+    from rigctl.records.contact_intensity import bin_matrix  # frames machinery loaded on use
 
     return np.asarray(bin_matrix(n_elements, n_parts), dtype=np.float64)
 
@@ -257,8 +257,8 @@ def read_image_features(run: MeasuredRun, events: EventTable, read: ReadSettings
     path = Path(run.source) if run.source else None
     if path is None or path.suffix.lower() not in (".h5", ".hdf5") or not path.is_file():
         return None, "no camera frames (not a run file)"
-    from rigctl.analysis.contact_intensity import find_contact_region, stream_intensity
-    from rigctl.analysis.contact_stress import p_bins
+    from rigctl.records.contact_intensity import find_contact_region, stream_intensity
+    from rigctl.records.contact_profile import p_bins
     from rigctl.storage.reader import RunReader
 
     try:

@@ -1,7 +1,7 @@
 """Camera frames streamed from a run file in chunks, with bounded memory.
 
 An hour of 60 Hz 640 x 480 video is 66 GB of pixels: no analysis may hold it. Every image analysis
-(:mod:`~rigctl.analysis.contact_intensity`, the spot extraction of chosen frames) reads frames
+(:mod:`~rigctl.records.contact_intensity`, the spot extraction of chosen frames) reads frames
 through :func:`iter_frame_chunks`, which yields :class:`FrameChunk` objects of at most
 ``max_bytes`` of pixels (whole frames; at least one frame). Only one chunk is alive at a time when
 the caller drops it before asking for the next, so the peak memory of a pass over a run is about one
@@ -9,7 +9,7 @@ chunk plus what the analysis keeps per frame.
 
 Frames are read from the run file's camera datasets as :meth:`rigctl.storage.reader.RunReader.frames`
 reads them (SWMR: a run still being written is read up to its last flushed frame), the pixels by
-:class:`rigctl.analysis.frame_inflate.FrameDecoder` (ISA-L's inflate for deflate-compressed frames,
+:class:`rigctl.records.frame_inflate.FrameDecoder` (ISA-L's inflate for deflate-compressed frames,
 about twice h5py's speed, docs/performance.md; h5py for anything else), byte for byte what h5py
 gives. Only frames with a time stamp are yielded (``n_frames`` of
 :class:`rigctl.analysis.source.FrameInfo`, or what the reader reports).
@@ -25,8 +25,8 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from rigctl.analysis.frame_inflate import FrameDecoder
 from rigctl.data import DataError, FloatArray
+from rigctl.records.frame_inflate import FrameDecoder
 from rigctl.storage import layout
 from rigctl.storage.reader import RunReader
 
