@@ -56,6 +56,11 @@ from drivers.validate import check_integer, check_number, refused
 MAX_RATE_HZ = 0xFFFF
 """The set-rate command carries a uint16."""
 
+DEFAULT_FORCE_N_PER_COUNT = 0.025
+"""Default force scale [N/count]: the wire's full scale, 32767 counts, is then 819.175 N, above the
+normal stage's rated 800 N (``drivers.ratings.RATED_NORMAL_FORCE_N``), as a lab fits a force sensor
+whose range covers the stage's rated load."""
+
 
 @dataclass(frozen=True)
 class CanDaqConfig:
@@ -67,7 +72,7 @@ class CanDaqConfig:
     bitrate: int | None = None
     node_id: int = 1
     rate_hz: float = 1024.0
-    force_N_per_count: float = 0.02
+    force_N_per_count: float = DEFAULT_FORCE_N_PER_COUNT
     force_range_N: float = math.inf
     """The force sensor's rated range [N]; the driver's :attr:`CanDaq.force_range_N` is the lower of
     it and the wire's full scale (``FULL_SCALE_COUNTS * force_N_per_count``)."""
@@ -81,7 +86,7 @@ class CanDaqConfig:
     @property
     def saturation_N(self) -> float:
         """Where a force reading saturates: the lower of :attr:`force_range_N` and the wire's full
-        scale (``FULL_SCALE_COUNTS * force_N_per_count``, 655.34 N at 0.02 N/count)."""
+        scale (``FULL_SCALE_COUNTS * force_N_per_count``, 819.175 N at 0.025 N/count)."""
         return min(self.force_range_N, FULL_SCALE_COUNTS * self.force_N_per_count)
 
     def __post_init__(self) -> None:

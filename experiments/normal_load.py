@@ -25,7 +25,7 @@ from experiments.errors import ProcedureError
 from experiments.steps import PlanState, Step, drive_to, hold_device_time, within_limits
 
 CONTACT_N = 2.0
-"""A reading above this means the specimens touch (100 force counts of 0.02 N)."""
+"""A reading above this means the specimens touch (80 force counts of 0.025 N)."""
 
 
 class LoadNormal(Step):

@@ -97,6 +97,7 @@ def dry_run(
 ) -> tuple[Plan, list[Step]]:
     """Plan every step against the limits from the tangential stage at ``x_start_m``."""
     params, steps = build_steps(protocol, given)
+    check_force_limit(limits)
     state = PlanState(x_m=x_start_m, x_start_m=x_start_m)
     planned = []
     for i, step in enumerate(steps, 1):
@@ -113,6 +114,17 @@ def dry_run(
             f"{longest.index} ({longest.description}) takes {longest.estimate_s:,.0f} s: is a "
             "unit wrong (velocities in m/s, travel in m)?")
     return plan, steps
+
+
+def check_force_limit(limits: RigLimits) -> None:
+    """Refuse a normal-force limit above the force sensor's range (PlanError, one line naming both):
+    past the range a reading is saturated, so the force guard could not see the load reach it."""
+    if limits.max_force_N > limits.force_range_N:
+        raise PlanError(
+            f"the normal-force limit {limits.max_force_N:g} N (normal_stage.limits.max_force_N) is "
+            f"above the force sensor's range {limits.force_range_N:g} N (daq.force_range_N): a "
+            "reading there is saturated, so the force guard could not see the load reach the limit"
+        )
 
 
 MAX_PLAN_S = 7 * 86400.0

@@ -7,7 +7,8 @@ Force sensor (mounting, a choice documented in docs/simulated-rig.md): x along t
 so Fx = Ft; z along the load axis with compression positive, so Fz = +Fn; Fy is the small lateral
 reading a real mounting shows, modelled as a misalignment crosstalk ``crosstalk_y * Ft``. Each axis
 adds Gaussian noise, subtracts its tare offset, and is quantised to ``force_N_per_count`` with int16
-saturation (+-655.34 N at the default 0.02 N/count, as a real ADC range saturates).
+saturation (+-819 N at the default 0.025 N/count, the driver's default scale, as a real ADC
+range saturates: the rig's sensor reads past the normal stage's rated 800 N).
 
 Probes (MTI-2100 with RS2032R, Han et al. 2022, Section 2.1): range 74 um centred on the zero, resolution
 0.019 um. The reading is the probe's gap change (the model's ideal d1 / d2 plus a mounting offset)
@@ -32,6 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.can_daq import DEFAULT_FORCE_N_PER_COUNT
+
 INT16_MIN = -32768  # forces and analog inputs travel as int16 counts (docs/protocols.md)
 INT16_MAX = 32767
 
@@ -42,23 +45,32 @@ FloatArray = NDArray[np.float64]
 class ForceSensorSpec:
     """Scales, noise and mounting of the force sensor and the DAQ's analog front end."""
 
-    force_N_per_count: float = 0.02
+    force_N_per_count: float = DEFAULT_FORCE_N_PER_COUNT
+    """The force scale, the DAQ driver's default (0.025 N/count: full scale 819.175 N)."""
     noise_rms_N: tuple[float, float, float] = (0.05, 0.05, 0.2)
     crosstalk_y: float = 0.01
     zero_offset_N: tuple[float, float, float] = (0.0, 0.0, 0.0)
     volts_per_count: float = 10.0 / 32768.0
     analog_noise_rms_V: float = 0.0005
     probe_m_per_volt: float = 7.4e-6
+    amplifier_limit_N: float = math.inf
+    """Where the force sensor's own amplifier saturates [N] (each axis, either sign): a true force
+    beyond it reads as the limit, plus the noise, so the reading plateaus with live noise below the
+    ADC's full scale. The DAQ does not know it (its :attr:`force_range_N` stays the full scale): a
+    mis-set amplifier gain, which only the normal stage's position bounds can catch. inf: the ADC
+    saturates first."""
 
     def __post_init__(self) -> None:
         if not (self.force_N_per_count > 0 and self.volts_per_count > 0):
             raise ValueError("DAQ scales must be positive")
+        if not self.amplifier_limit_N > 0:
+            raise ValueError(f"amplifier_limit_N must be > 0 N, got {self.amplifier_limit_N!r}")
         if self.probe_m_per_volt == 0 or not math.isfinite(self.probe_m_per_volt):
             raise ValueError("probe_m_per_volt must be finite and non-zero")
 
     @property
     def force_range_N(self) -> float:
-        """Where a force reading saturates: the int16 full scale times the scale (655.34 N)."""
+        """Where a force reading saturates: the int16 full scale times the scale (819.175 N)."""
         return INT16_MAX * self.force_N_per_count
 
 
@@ -77,10 +89,12 @@ class ForceSensor:
         self._lock = threading.Lock()
 
     def forces_N(self, ft_N: FloatArray, fn_N: FloatArray) -> NDArray[np.float64]:
-        """(n, 3) sensor forces [N] before quantisation: mounting, crosstalk, noise, tare."""
-        ft = np.asarray(ft_N, dtype=np.float64)
-        fn = np.asarray(fn_N, dtype=np.float64)
+        """(n, 3) sensor forces [N] before quantisation: amplifier limit, mounting, crosstalk,
+        noise, tare."""
         s = self.spec
+        limit = s.amplifier_limit_N
+        ft = np.clip(np.asarray(ft_N, dtype=np.float64), -limit, limit)
+        fn = np.clip(np.asarray(fn_N, dtype=np.float64), -limit, limit)
         f = np.empty((ft.shape[0], 3))
         f[:, 0] = ft
         f[:, 1] = s.crosstalk_y * ft

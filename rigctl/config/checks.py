@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import difflib
 
+from drivers.can_frames import FULL_SCALE_COUNTS
 from drivers.modbus_codec import INT32_MAX
-from rigctl.config.adapters import StageName, stage_config
+from rigctl.config.adapters import StageName, daq_config, stage_config
 from rigctl.config.errors import ConfigError
 from rigctl.config.schema import NormalStage, RigConfig, StageLink, TangentialStage
 
@@ -19,6 +20,7 @@ def check_config(config: RigConfig) -> None:
     """Raise :class:`ConfigError` at the first inconsistency."""
     _check_stage(config, "tangential_stage")
     _check_stage(config, "normal_stage")
+    _check_force_range(config)
     ch = config.channels
     if ch.d1_channel == ch.d2_channel:
         _fail("channels.d2_channel", f"D1 and D2 cannot both be analog input {ch.d1_channel}")
@@ -68,6 +70,21 @@ def _check_stage(config: RigConfig, name: StageName) -> None:
         stage_config(config, name)
     except ValueError as exc:  # the driver's own checks, as a backstop
         _fail(name, str(exc))
+
+
+def _check_force_range(config: RigConfig) -> None:
+    """The normal-force limit must be within the force sensor's range: past it a reading is
+    saturated, so the force guard could not see the load reach the limit."""
+    limit_N = config.normal_stage.limits.max_force_N
+    range_N = daq_config(config).saturation_N  # the range the drivers and the dry run use
+    if limit_N > range_N:
+        _fail(
+            "normal_stage.limits.max_force_N",
+            f"{limit_N:g} N is above the force sensor's range {range_N:g} N (daq.force_range_N, "
+            f"at most {FULL_SCALE_COUNTS} x daq.force_N_per_count): a reading there is saturated, "
+            "so the force guard could not see the load reach the limit; lower the limit or "
+            "configure a sensor that reads it",
+        )
 
 
 def _check_real(config: RigConfig) -> None:

@@ -16,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from drivers.can_daq import DEFAULT_FORCE_N_PER_COUNT
+from drivers.can_frames import FULL_SCALE_COUNTS
 from drivers.interfaces import ChannelMap, StageLimits
 from drivers.modbus_codec import RegisterMap, WordOrder
 from drivers.modbus_stage import (
@@ -34,6 +36,9 @@ NORMAL_STROKE_M = NORMAL_LIMITS.max_position_m
 """Travel of the normal loading stage: 25 mm (Han et al. 2022, Section 2.1)."""
 TANGENTIAL_STROKE_M = TANGENTIAL_LIMITS.max_position_m
 """Travel of the tangential stage: 200 mm (Han et al. 2022, Section 2.1)."""
+DEFAULT_FORCE_RANGE_N = round(FULL_SCALE_COUNTS * DEFAULT_FORCE_N_PER_COUNT, 9)
+"""The force sensor's default range: the DAQ's full scale at the default force scale, 32767 counts x
+0.025 N/count = 819.175 N, which covers the normal stage's rated 800 N (rounded to the nanonewton)."""
 
 Backend = Literal["sim", "sim-wire", "real"]
 Transport = Literal["tcp", "rtu"]
@@ -109,7 +114,9 @@ class NormalLimits(StageLimits):
     )
     max_force_N: float = setting(
         RATED_NORMAL_FORCE_N,
-        "Normal-force limit: |Fn| above it emergency-stops the normal stage.",
+        "Normal-force limit: |Fn| above it emergency-stops the normal stage. At most the force "
+        "sensor's range (daq.force_range_N, itself at most 32767 x daq.force_N_per_count): a "
+        "larger limit is refused, since the guard could not read the load past the range.",
         unit="N",
         gt=0.0,
         le=RATED_NORMAL_FORCE_N,
@@ -128,9 +135,13 @@ class NormalLimits(StageLimits):
     max_approach_m: float = setting(
         115e-6,
         "Furthest the normal stage may press past the position where it first read a contact: the "
-        "load path's deflection at max_force_N with a small margin; set the two together (this rig: "
-        "109 um at 800 N, 80 um at 500 N). A load step that would go further stops and fails, so a "
-        "blind force reading presses at most this plus one contact-search step past the contact.",
+        "load path's deflection at the lower of max_force_N and the force sensor's range "
+        "(daq.force_range_N), with a small margin. The configuration knows no contact stiffness, so "
+        "set it with the force limit: load a specimen to that force once with a sound sensor and "
+        "read the approach from the run file (Fn against the normal stage's position), and lower "
+        "both together (this rig: 109 um at 800 N, 80 um at 500 N). A load step that would go "
+        "further stops and fails, so a blind, frozen or saturated force reading presses at most "
+        "this plus one contact-search step past the contact.",
         unit="m",
         gt=0.0,
     )
@@ -191,13 +202,20 @@ class DaqSection:
     bitrate: int = setting(1_000_000, "CAN bit rate; 0 leaves it to the interface.", unit="bit/s", ge=0)
     node_id: int = setting(1, "Node id: data on 0x180/0x280 + node, commands on 0x600 + node.", ge=1, le=127)
     sample_rate_hz: int = setting(1024, "Sample rate of forces and probes.", unit="Hz", ge=1, le=65535)
-    force_N_per_count: float = setting(0.02, "Force scale.", unit="N/count", gt=0.0)
+    force_N_per_count: float = setting(
+        DEFAULT_FORCE_N_PER_COUNT,
+        "Force scale: 32767 counts (the int16 full scale) are the most the DAQ can read, 819.175 N "
+        "at the default, which covers the normal stage's rated 800 N.",
+        unit="N/count",
+        gt=0.0,
+    )
     force_range_N: float = setting(
-        655.34,
+        DEFAULT_FORCE_RANGE_N,
         "The force sensor's range: a reading this large is saturated (at least this much), so the "
-        "force guard trips there and the dry run refuses a target above it. Used as at most the "
-        "DAQ's full scale, 32767 counts x force_N_per_count (655.34 N at 0.02 N/count); the "
-        "simulated sensor's range is that full scale.",
+        "force guard trips there, and a normal-force limit (normal_stage.limits.max_force_N) or a "
+        "force target above it is refused before anything moves. Used as at most the DAQ's full "
+        "scale, 32767 counts x force_N_per_count; the default is that full scale at the default "
+        "scale; the simulated sensor's range is the full scale at force_N_per_count.",
         unit="N",
         gt=0.0,
     )

@@ -1,5 +1,6 @@
 """A saturated force reading counts as "at least this much": the force guard trips at the sensor's range
-(issue 35: the simulated sensor saturates at 655.34 N, the guard at 800 N never tripped)."""
+(issue 35: the simulated sensor saturated at 655.34 N, 0.02 N/count then, the guard at 800 N never
+tripped)."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ import pytest
 
 from drivers.can_daq import CanDaq, CanDaqConfig
 from drivers.errors import ForceLimitError, SettingError
+from drivers.ratings import RATED_NORMAL_FORCE_N
 from drivers.safety import EmergencyStop, ForceGuard
 
 from .test_drv_safety import LoggingStage
 
-RANGE_N = 32767 * 0.02  # the DAQ's full scale at 0.02 N/count: 655.34 N
+RANGE_N = 32767 * 0.02  # a DAQ's full scale at 0.02 N/count: 655.34 N, below the 800 N limit
+DEFAULT_FULL_SCALE_N = 32767 * 0.025  # the default scale's full scale: 819.175 N
 
 
 @pytest.fixture
@@ -64,9 +67,11 @@ def test_the_guard_refuses_a_range_that_is_not_a_positive_number(stage: LoggingS
 
 
 def test_the_can_daq_range_is_the_configured_one_at_most_the_wire_full_scale() -> None:
-    assert CanDaqConfig().saturation_N == RANGE_N  # nothing configured: the int16 full scale
+    assert CanDaqConfig().saturation_N == DEFAULT_FULL_SCALE_N  # nothing configured: int16 full scale
+    assert CanDaqConfig().saturation_N >= RATED_NORMAL_FORCE_N  # it reads the stage's rated load
     assert CanDaqConfig(force_range_N=500.0).saturation_N == 500.0  # a 500 N sensor
-    assert CanDaqConfig(force_range_N=2000.0).saturation_N == RANGE_N  # the wire saturates first
+    assert CanDaqConfig(force_range_N=2000.0).saturation_N == DEFAULT_FULL_SCALE_N  # wire first
+    assert CanDaqConfig(force_N_per_count=0.02, force_range_N=2000.0).saturation_N == RANGE_N
     assert CanDaqConfig(force_N_per_count=0.05).saturation_N == pytest.approx(1638.35)
     with CanDaq(CanDaqConfig(channel="rigctl-force-range", force_range_N=500.0)) as daq:
         assert daq.force_range_N == 500.0

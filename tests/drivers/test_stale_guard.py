@@ -36,7 +36,7 @@ def _blocks(values: np.ndarray, block: int = 64):
 
 def test_a_live_noisy_reading_never_trips() -> None:
     rng = np.random.default_rng(0)
-    live = np.round(rng.normal(0.0, 0.05, (20 * 1024, 3)) / 0.02) * 0.02  # 20 s on 0.02 N counts
+    live = np.round(rng.normal(0.0, 0.05, (20 * 1024, 3)) / 0.025) * 0.025  # 20 s on 0.025 N counts
     guard = StaleReadingGuard([_Stage()])
     assert all(guard.feed(t, ch) is None for t, ch in _blocks(live))
 
@@ -44,7 +44,7 @@ def test_a_live_noisy_reading_never_trips() -> None:
 @pytest.mark.parametrize("frozen_at_s", [0.0, 3.0])
 def test_a_frozen_reading_trips_within_the_window(frozen_at_s: float) -> None:
     rng = np.random.default_rng(1)
-    v = np.round(rng.normal(50.0, 0.05, (10 * 1024, 3)) / 0.02) * 0.02
+    v = np.round(rng.normal(50.0, 0.05, (10 * 1024, 3)) / 0.025) * 0.025
     i0 = int(frozen_at_s * RATE_HZ)
     v[i0:] = v[i0]  # the counter advances, the values repeat (a stuck sensor)
     stage_a, stage_b = _Stage(fail=True), _Stage()

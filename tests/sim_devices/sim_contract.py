@@ -97,7 +97,7 @@ class SimDaqContract:
         assert float(np.mean(s["fn"])) == pytest.approx(fn_true, abs=0.1)
         assert abs(float(np.mean(s["ft"]))) < 0.1
         assert np.all(np.abs(s["fy"]) < 0.5)
-        counts = s["fn"] / 0.02
+        counts = s["fn"] / 0.025  # the default scale, 0.025 N/count
         np.testing.assert_allclose(counts, np.rint(counts), atol=1e-6)
 
     def test_tare_zeroes_the_forces(self, sim: SimRig, daq: Daq) -> None:

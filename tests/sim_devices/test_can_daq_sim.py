@@ -82,7 +82,7 @@ def test_frames_follow_the_rig_clock_quantised(
     analog = [struct.unpack("<Hhhh", bytes(m.data)) for m in got if m.arbitration_id == 0x281]
     assert [f[0] for f in force] == list(range(100)) == [a[0] for a in analog]
     fz = np.array([f[3] for f in force])
-    assert np.all(fz == round(rig.state.fn_N / 0.02))  # 123.456 N -> 6173 counts of 0.02 N
+    assert np.all(fz == round(rig.state.fn_N / 0.025))  # 123.456 N -> 4938 counts of 0.025 N
     assert all(f[1] == 0 and a[1] == 0 and a[2] == 0 for f, a in zip(force, analog, strict=True))
 
 
