@@ -335,7 +335,7 @@ class ForceGuard:
 STALE_WINDOW_S = 0.5
 """A force reading whose three channels stay bit-identical this long (device time) is frozen: a
 live strain-gauge sensor flickers by at least one count within milliseconds (the simulated one by
-0.05-0.2 N RMS on 0.02 N counts), so half a second without any change is a stuck sensor or DAQ."""
+0.05-0.2 N RMS on 0.025 N counts), so half a second without any change is a stuck sensor or DAQ."""
 
 
 class StaleReadingGuard:

@@ -1,7 +1,8 @@
 """Realistic sensor noise and quantisation for simulated runs (off unless asked for).
 
 Gaussian white noise of the given RMS, then rounding to the channel's resolution (its LSB), as the
-rig's acquisition chain does: force LSB 0.02 N (the CAN DAQ scale, docs/protocols.md), probe
+rig's acquisition chain does: force LSB 0.02 N (a DAQ of 0.02 N per count; the simulated rig's
+own CAN DAQ reads 0.025 N per count, docs/protocols.md, and quantises its readings itself), probe
 resolution 0.019 um (MTI-2100 + RS2032R, paper Sec. 2.1), tangential stage encoder 0.32 um.
 """
 
