@@ -42,35 +42,26 @@ the bands when the contact slips progressively (``stress_evolution``) and is fla
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
+from rigctl.records import window_reads
 from rigctl.records.drive_profile import DriveProfile
 from rigctl.records.events import DetectionSettings, SlipIndices, detect_slips
 from rigctl.records.feature_info import EVENT_FEATURES, SE_FEATURES
 from rigctl.records.signals import (
     FloatArray,
-    line_fit,
     noise_sigma,
     regress_slope,
-    slope_se,
 )
 
 COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
     "dft_dt_N_per_s",
 )
-MAX_NOISE_SHARE = 0.1
-"""K(i) is read only where the force noise makes at most 10 % of Ft's variance in the window (the
-force range of the window at least about 11 noise RMS)."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
-DELAY_MIN_SLIP_NOISE = 10.0
-"""``drop_delay_s`` is read only for a slip of at least 10 delta noise RMS: its half-way level then
-lies 5 RMS from either settled line, beyond the noise's reach before the slip."""
-
-
 @dataclass(frozen=True)
 class ReadSettings:
     """How a run is read: slip detection and the post-slip settle time (fixed per campaign)."""
@@ -117,33 +108,32 @@ LOAD_CHANGE_FRACTION = 0.25
 Normal-force swings of the slips themselves (normal coupling, a few %) stay well below."""
 
 
-def _crossing_time(t: FloatArray, y: FloatArray, i0: int, i1: int, level: float,
-                   rising: bool) -> float:
-    """First time in samples [i0, i1) at which ``y`` reaches ``level`` going up (``rising``) or
-    down, linearly interpolated between samples; NaN where ``y`` is there at ``i0`` already or
-    never gets there."""
-    seg = (1.0 if rising else -1.0) * (y[i0:i1] - level)
-    past = np.flatnonzero(seg >= 0.0)
-    if past.size == 0 or past[0] == 0:
-        return math.nan
-    k = int(past[0])
-    y0, y1 = float(seg[k - 1]), float(seg[k])
-    t0, t1 = float(t[i0 + k - 1]), float(t[i0 + k])
-    return t0 + (-y0) / (y1 - y0) * (t1 - t0)
+def _stick_durations(drive: DriveProfile, t_prev: FloatArray,
+                     t_drop: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Stick durations at the drive velocity of each drop, and the time the stage rested in each
+    stick (seconds of hold between ``t_prev`` and ``t_drop``).
+
+    A stick's duration is the stage travel since the previous drop (or the start of motion)
+    divided by the velocity at the drop. At constant velocity this is the time between the drops;
+    across a velocity step or a hold it measures the loading the stick took, whatever the phase of
+    the cycle at the step (the time would jump with it). Falls back to the time when the stage
+    rests at the drop."""
+    k = drive.segment_index(t_drop)
+    v = np.abs(drive.phase_velocity[k])
+    # seconds of each drive segment inside each stick (DriveProfile.travel_between, for all)
+    within = (np.clip(drive.t_s[1:], t_prev[:, None], t_drop[:, None])
+              - np.clip(drive.t_s[:-1], t_prev[:, None], t_drop[:, None]))
+    travel = np.sum(np.abs(drive.velocity_m_per_s) * within, axis=1)
+    hold = np.sum(within[:, drive.is_hold], axis=1)
+    by_time = drive.phase_is_hold[k] | (v <= 0.0) | (travel <= 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stick: FloatArray = np.where(by_time, t_drop - t_prev, travel / v)
+    return stick, hold
 
 
 def _stick_duration(drive: DriveProfile, t_prev: float, t_drop: float) -> float:
-    """Stick duration at the drive velocity of the drop: the stage travel since the previous drop
-    (or the start of motion) divided by that velocity. At constant velocity this is the time
-    between the drops; across a velocity step or a hold it measures the loading the stick took,
-    whatever the phase of the cycle at the step (the time would jump with it). Falls back to the
-    time when the stage rests at the drop."""
-    k = int(drive.segment_index(np.array([t_drop]))[0])
-    v = abs(float(drive.phase_velocity[k]))
-    travel = drive.travel_between(t_prev, t_drop)
-    if drive.phase_is_hold[k] or v <= 0.0 or travel <= 0.0:
-        return t_drop - t_prev
-    return travel / v
+    """:func:`_stick_durations` of one stick."""
+    return float(_stick_durations(drive, np.array([t_prev]), np.array([t_drop]))[0][0])
 
 
 def extract_events(
@@ -161,39 +151,38 @@ def extract_events(
     ``delta_valid`` (per sample, :mod:`rigctl.records.probe_range`): where False a probe was over
     range, and the delta features whose windows include such samples are left NaN (not compared).
 
-    Steps: detect the slips; refine their drop times; per slip, its stick window
-    (:func:`_cycle_window`), the levels at the drop (:func:`_levels_at_drop`), the loading ramp
-    (:func:`_loading_ramp`), the drop's shape (:func:`_drop_shape`) and its covariates; then the
-    run-wide covariates, the load-change slips left out (:func:`_leave_out_load_changes`) and the
-    initial-stage curve.
+    Steps: detect the slips; refine their drop times; each slip's stick and the windows its
+    features are read over (:func:`_windows`); the levels at the drop, the loading ramp and the
+    drop's shape read in them (:func:`_read`, compiled: :mod:`rigctl.records.window_reads`); the
+    stick durations and the covariates; then the load-change slips left out
+    (:func:`_leave_out_load_changes`) and the initial-stage curve.
     """
     t = t_s - t_s[0]
-    if slips is None:
-        slips = detect_slips(t, ft_N, delta_m, settings.detection, delta_valid,
-                             v_drive_m_s=drive.sliding_velocity_at(t), fn_N=fn_N)
     rec = _Record(t, ft_N, delta_m, fn_N, drive, settings, delta_valid)
+    if slips is None:
+        slips = detect_slips(t, rec.ft_N, rec.delta_m, settings.detection, delta_valid,
+                             v_drive_m_s=drive.sliding_velocity_at(t), fn_N=rec.fn_N,
+                             dt_s=rec.dt if t.size > 1 else None,
+                             delta_noise_m=rec.sigma_d if delta_valid is None else None)
     n_ev = slips.n
-    t_drop = _drop_times(rec, slips)
+    t_drop = (window_reads.drop_times(t, rec.ft_N, slips.i_peak.astype(np.intp),
+                                      slips.i_end.astype(np.intp), slips.sign.astype(np.int64))
+              if n_ev else np.zeros(0))
     feats = {name: np.full(n_ev, np.nan) for name in EVENT_FEATURES}
     se = {name: np.full(n_ev, np.nan) for name in SE_FEATURES}
     cov = {name: np.full(n_ev, np.nan) for name in COVARIATES}
     stage = np.ones(n_ev, dtype=np.int8)
     segment = drive.segment_index(t_drop) if n_ev else np.zeros(0, np.intp)
-    # the last slip's settled level needs at least half a typical cycle of record after it
-    min_tail = 0.5 * float(np.median(np.diff(t_drop))) if n_ev >= 3 else 0.3
-    for j in range(n_ev):
-        cyc = _cycle_window(rec, slips, t_drop, j, min_tail)
-        lv = _levels_at_drop(rec, cyc, j, feats)
-        _loading_ramp(rec, cyc, j, feats, se)
-        _drop_shape(rec, cyc, lv, j, feats)
-        cov["t_s"][j] = cyc.td
-        cov["cycle"][j] = j
-        cov["fn_N"][j] = lv.fn_pk
-        cov["hold_s"][j] = drive.hold_time_between(cyc.prev_td, cyc.td)
-        cov["stick_time_s"][j] = cyc.td - cyc.prev_td
-        cov["ft_N"][j] = lv.peak
-        cov["dft_dt_N_per_s"][j] = feats["rate_N_per_s"][j]
     if n_ev:
+        win = _windows(rec, slips, t_drop)
+        fn_peak = _read(rec, slips, t_drop, win, feats, se)
+        feats["stick_s"], cov["hold_s"] = _stick_durations(drive, win.prev_td, t_drop)
+        cov["t_s"] = t_drop.copy()
+        cov["cycle"] = np.arange(n_ev, dtype=np.float64)
+        cov["fn_N"] = fn_peak
+        cov["stick_time_s"] = t_drop - win.prev_td
+        cov["ft_N"] = feats["peak_N"].copy()
+        cov["dft_dt_N_per_s"] = feats["rate_N_per_s"].copy()
         cov["v_drive_m_per_s"] = np.abs(drive.velocity_at(t_drop))
         slips_m = np.nan_to_num(feats["slip_m"], nan=0.0)
         cov["cum_slip_m"] = np.concatenate([[0.0], np.cumsum(slips_m)[:-1]])
@@ -221,197 +210,135 @@ class _Record:
     def __init__(self, t: FloatArray, ft_N: FloatArray, delta_m: FloatArray, fn_N: FloatArray,
                  drive: DriveProfile, settings: ReadSettings,
                  delta_valid: np.ndarray | None) -> None:
-        self.t, self.ft_N, self.delta_m, self.fn_N = t, ft_N, delta_m, fn_N
+        self.t = t
+        self.ft_N = np.ascontiguousarray(ft_N, dtype=np.float64)
+        self.delta_m = np.ascontiguousarray(delta_m, dtype=np.float64)
+        self.fn_N = np.ascontiguousarray(fn_N, dtype=np.float64)
         self.drive, self.settings, self.delta_valid = drive, settings, delta_valid
         self.dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
         self.sigma_f = noise_sigma(ft_N)
         self.sigma_d = noise_sigma(delta_m)
         self.t_motion = drive.motion_start_s()
-        self.x_drive = drive.x_at(t)
         self.drop_window = settings.detection.drop_window(self.dt)
         """Samples a drop is read over (as the slip detection reads it)."""
+
+    @cached_property
+    def x_drive(self) -> FloatArray:
+        """Stage position (simplified drive) at every sample."""
+        return self.drive.x_at(self.t)
 
     def idx(self, time: float) -> int:
         """Index of the first sample at or after ``time``."""
         return int(np.searchsorted(self.t, time))
 
-    def d_ok(self, i0: int, i1: int) -> bool:
-        """Whether delta is within the probes' range over samples [i0, i1)."""
-        return self.delta_valid is None or bool(self.delta_valid[max(i0, 0) : max(i1, 0)].all())
+    def indices(self, times: FloatArray) -> np.ndarray:
+        """:meth:`idx` of each time."""
+        return np.searchsorted(self.t, times)
 
 
 @dataclass(frozen=True)
-class _Cycle:
-    """One slip and the stick before it: the windows its features are read over."""
+class _Windows:
+    """Each slip's stick before it and the windows its features are read over (arrays, one entry
+    per slip; sample indices into the record)."""
 
-    td: float
-    """Drop time."""
-    prev_td: float
+    prev_td: FloatArray
     """Previous drop (the start of motion for the first)."""
-    a_load: float
-    """Start of this stick's loading (after the settle time, not before the drive's last change)."""
-    length: float
-    """Loading time up to the drop."""
-    after_len: float
-    """Length of the settled post-slip window (0 when the record ends too soon after the slip)."""
-    i_pk: int
-    sign: int
+    length: FloatArray
+    """Loading time up to the drop: from the start of this stick's loading (after the settle
+    time, not before the drive's last change)."""
+    xs_td: FloatArray
+    """Stage position (simplified drive) at the drop."""
+    use_x: np.ndarray
+    """The settled post-slip line is fitted against the stage position, not time."""
+    i_pre0: np.ndarray
+    """Pre-drop ramp: from here to the peak."""
+    i_post0: np.ndarray
+    """Settled post-slip stick: [i_post0, i_post1); empty when the record ends too soon."""
+    i_post1: np.ndarray
+    i_prev: np.ndarray
+    """First sample at or after the previous drop."""
+    i_early0: np.ndarray
+    """Early loading ramp: [i_early0, i_early1)."""
+    i_early1: np.ndarray
+    i_end0: np.ndarray
+    """Last part of the ramp (rounding): from here to the peak."""
+    i_ring0: np.ndarray
+    """Ringing read: [i_ring0, i_post0)."""
 
 
-def _drop_times(rec: _Record, slips: SlipIndices) -> FloatArray:
-    """Each slip's drop time: where Ft crosses half-way down its fall, refined between samples."""
-    t_drop = np.empty(slips.n)
-    for j in range(slips.n):
-        i_pk, i_end, s = int(slips.i_peak[j]), int(slips.i_end[j]), int(slips.sign[j])
-        size0 = s * rec.ft_N[i_pk] - float(np.min(s * rec.ft_N[i_pk : i_end + 1]))
-        level = rec.ft_N[i_pk] - s * 0.5 * size0
-        crossing = _crossing_time(rec.t, rec.ft_N, i_pk, i_end + 1, level, rising=s < 0)
-        t_drop[j] = crossing if math.isfinite(crossing) else float(rec.t[i_pk])
-    return t_drop
-
-
-def _cycle_window(rec: _Record, slips: SlipIndices, t_drop: FloatArray, j: int,
-                  min_tail: float) -> _Cycle:
-    """The stick before slip ``j`` and the post-slip window after it."""
+def _windows(rec: _Record, slips: SlipIndices, t_drop: FloatArray) -> _Windows:
+    """The windows of every slip, from the drop times and the drive."""
+    t, drive, dt, td = rec.t, rec.drive, rec.dt, t_drop
     settle = rec.settings.settle_s
-    td = float(t_drop[j])
-    prev_td = float(t_drop[j - 1]) if j > 0 else rec.t_motion
-    a = prev_td + settle if j > 0 else rec.t_motion
-    a_load = max(a, rec.drive.last_change_before(td))
-    n_ev = t_drop.shape[0]
-    nxt = float(t_drop[j + 1]) if j + 1 < n_ev else float(rec.t[-1])
-    after_len = min(0.4 * (nxt - td - settle), 1.0)
-    if j + 1 == n_ev and nxt - td - settle < min_tail:
-        after_len = 0.0  # the record ends before the stick after the last slip is seen
-    return _Cycle(td, prev_td, a_load, td - a_load, after_len, int(slips.i_peak[j]),
-                  int(slips.sign[j]))
-
-
-@dataclass(frozen=True)
-class _Levels:
-    """Levels at a drop and the settled post-slip line they were read from."""
-
-    peak: float
-    trough: float
-    slope_after: float
-    post_axis: FloatArray
-    """What the post-slip line is a line in: time, or the stage position across a velocity change."""
-    post_at: float
-    """The drop on ``post_axis``."""
-    fn_pk: float
-
-
-def _levels_at_drop(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray]) -> _Levels:
-    """Peak, trough, drop, stick duration, slip distance, normal-force swing and lag of slip ``j``:
-    line fits over the pre-drop ramp and the settled post-slip stick, evaluated at the drop."""
-    t, dt, drive, td = rec.t, rec.dt, rec.drive, cyc.td
-    settle = rec.settings.settle_s
-    pre_len = min(0.15 * cyc.length, 0.3) if cyc.length > 0 else 0.0
-    i_pre0, i_pre1 = rec.idx(td - max(pre_len, 8 * dt)), cyc.i_pk + 1
-    i_post0, i_post1 = rec.idx(td + settle), rec.idx(td + settle + cyc.after_len)
+    n_ev = td.shape[0]
+    # the last slip's settled level needs at least half a typical cycle of record after it
+    min_tail = 0.5 * float(np.median(np.diff(td))) if n_ev >= 3 else 0.3
+    prev_td = np.concatenate([[rec.t_motion], td[:-1]])
+    start = np.concatenate([[rec.t_motion], td[:-1] + settle])
+    k_td = drive.segment_index(td)
+    a_load = np.maximum(start, drive.t_s[drive.phase_knots[k_td]])
+    nxt = np.concatenate([td[1:], [float(t[-1])]])
+    after_len = np.minimum(0.4 * (nxt - td - settle), 1.0)
+    if nxt[-1] - td[-1] - settle < min_tail:
+        after_len[-1] = 0.0  # the record ends before the stick after the last slip is seen
+    length = td - a_load
+    pre_len = np.where(length > 0, np.minimum(0.15 * length, 0.3), 0.0)
+    i_post0, i_post1 = rec.indices(td + settle), rec.indices(td + settle + after_len)
     # the settled post-slip line is read against the stage position when the stage changes
     # velocity inside the window (stick loading is linear in stage travel, not in time), and
     # up to the change when it stops or reverses there: a line in time across a velocity step
     # would bend the extrapolated trough by where in the cycle the step fell
-    # the stage from the simplified drive (the encoder's quantisation steps would otherwise
-    # show as a slow sawtooth in the lag)
-    xs_td = float(drive.x_at(np.array([td]))[0])
-    post_axis, post_at = t, td
-    k_td = int(drive.segment_index(np.array([td]))[0])
-    if i_post1 > i_post0 and int(drive.segment_index(t[i_post1 - 1 : i_post1])[0]) != k_td:
-        if drive.steady_slide_between(td, float(t[i_post1 - 1])):
-            post_axis, post_at = rec.x_drive, xs_td
+    use_x = np.zeros(n_ev, dtype=np.bool_)
+    crosses = i_post1 > i_post0
+    crosses[crosses] = drive.segment_index(t[i_post1[crosses] - 1]) != k_td[crosses]
+    for j in np.flatnonzero(crosses):
+        if drive.steady_slide_between(float(td[j]), float(t[i_post1[j] - 1])):
+            use_x[j] = True
         else:
-            i_post1 = min(i_post1, rec.idx(drive.phase_end(td)))
-    peak, _ = line_fit(t, rec.ft_N, i_pre0, i_pre1, td)
-    trough, slope_after = line_fit(post_axis, rec.ft_N, i_post0, i_post1, post_at)
-    d_pk, _ = line_fit(t, rec.delta_m, i_pre0, i_pre1, td)
-    d_after, _ = line_fit(post_axis, rec.delta_m, i_post0, i_post1, post_at)
-    fn_pk, _ = line_fit(t, rec.fn_N, i_pre0, i_pre1, td)
-    fn_after, _ = line_fit(post_axis, rec.fn_N, i_post0, i_post1, post_at)
-    s = cyc.sign
-    feats["peak_N"][j] = peak
-    feats["trough_N"][j] = trough
-    feats["drop_N"][j] = s * (peak - trough)
-    feats["stick_s"][j] = _stick_duration(drive, cyc.prev_td, td)
-    if rec.d_ok(i_pre0, i_pre1) and rec.d_ok(i_post0, i_post1):
-        feats["slip_m"][j] = s * (d_after - d_pk)
-        if abs(d_after - d_pk) > DELAY_MIN_SLIP_NOISE * rec.sigma_d:
-            # half-way between the settled line levels, not from the peak sample: the time then
-            # moves continuously with the signal instead of with the sampling phase
-            i0 = max(cyc.i_pk - rec.drop_window, rec.idx(cyc.prev_td) + 1, 1)
-            if rec.d_ok(i0, i_post0):
-                feats["drop_delay_s"][j] = (
-                    _crossing_time(t, rec.ft_N, i0, i_post0, 0.5 * (peak + trough), trough > peak)
-                    - _crossing_time(t, rec.delta_m, i0, i_post0, 0.5 * (d_pk + d_after),
-                                     d_after > d_pk))
-    feats["fn_swing_N"][j] = fn_pk - fn_after
-    if rec.d_ok(i_pre0, i_pre1):
-        feats["lag_m"][j] = xs_td - d_pk
-    return _Levels(peak, trough, slope_after, post_axis, post_at, fn_pk)
+            i_post1[j] = min(int(i_post1[j]), int(rec.idx(drive.phase_end(float(td[j])))))
+    return _Windows(
+        prev_td=prev_td, length=length,
+        # the stage from the simplified drive (the encoder's quantisation steps would otherwise
+        # show as a slow sawtooth in the lag)
+        xs_td=drive.x_at(td), use_x=use_x,
+        i_pre0=rec.indices(td - np.maximum(pre_len, 8 * dt)), i_post0=i_post0, i_post1=i_post1,
+        i_prev=rec.indices(prev_td), i_early0=rec.indices(a_load + 0.1 * length),
+        i_early1=rec.indices(a_load + 0.6 * length), i_end0=rec.indices(td - 0.15 * length),
+        i_ring0=rec.indices(td + dt))
 
 
-def _loading_ramp(rec: _Record, cyc: _Cycle, j: int, feats: dict[str, FloatArray],
-                  se: dict[str, FloatArray]) -> None:
-    """Early loading rate, K(i) and rounding of the stick before slip ``j``, with their standard
-    errors (nothing for a stick shorter than 20 samples)."""
-    t, dt, length, td, s = rec.t, rec.dt, cyc.length, cyc.td, cyc.sign
-    if not length > 20 * dt:
-        return
-    i_e0, i_e1 = rec.idx(cyc.a_load + 0.1 * length), rec.idx(cyc.a_load + 0.6 * length)
-    i_n0 = rec.idx(td - 0.15 * length)
-    _, rate = line_fit(t, rec.ft_N, i_e0, i_e1, td)
-    _, rate_end = line_fit(t, rec.ft_N, i_n0, cyc.i_pk + 1, td)
-    feats["rate_N_per_s"][j] = s * rate
-    t_seg = t[i_e0:i_e1]
-    se_rate = slope_se(t_seg, rec.sigma_f)
-    se_end = slope_se(t[i_n0 : cyc.i_pk + 1], rec.sigma_f)
-    if rate != 0.0 and np.isfinite(rate):
-        feats["rounding"][j] = rate_end / rate
-        se["rate_N_per_s"][j] = se_rate / abs(rate)
-        se["rounding"][j] = math.hypot(se_end, abs(rate_end) * se_rate / abs(rate)) / abs(rate)
-    f_seg = rec.ft_N[i_e0:i_e1]
-    # K(i) is read only where the window's force range stands well above the force noise: the
-    # share of Ft's variance that is noise (1 - reliability ratio; Fuller, Measurement Error
-    # Models, 1987, Sec. 1.1) at most MAX_NOISE_SHARE
-    var_f = float(np.var(f_seg)) if f_seg.size > 3 else 0.0
-    reliability = 1.0 - rec.sigma_f**2 / var_f if var_f > 0.0 else 0.0
-    if f_seg.size > 3 and reliability >= 1.0 - MAX_NOISE_SHARE and rec.d_ok(i_e0, i_e1):
-        # dFt/d(delta) as the ratio of the two slopes in time. Regressing delta on Ft instead
-        # would mix in a post-slip ringing that has not died out: in it Ft and delta swing in
-        # opposition on the drive spring (dFt = -K0 d(delta)), and a slowly decaying ringing
-        # (a light, lightly damped slider) read the stiffness several times too high. A line in
-        # time averages the ringing out over the window's cycles; noise in either channel only
-        # adds scatter (the slopes' standard errors), no bias of first order
-        _, rate_d = line_fit(t, rec.delta_m, i_e0, i_e1, td)
-        k_i = rate / rate_d if rate_d != 0.0 else math.nan
-        if np.isfinite(k_i) and k_i > 0.0:
-            feats["k_stick_N_per_m"][j] = k_i
-            se["k_stick_N_per_m"][j] = k_i * math.hypot(
-                se_rate / abs(rate), slope_se(t_seg, rec.sigma_d) / abs(rate_d))
+_ALL_VALID = np.zeros(0, dtype=np.bool_)
+_COLUMNS = {"peak_N": window_reads.PEAK, "trough_N": window_reads.TROUGH,
+            "drop_N": window_reads.DROP, "slip_m": window_reads.SLIP,
+            "drop_delay_s": window_reads.DELAY, "fn_swing_N": window_reads.FN_SWING,
+            "lag_m": window_reads.LAG, "rate_N_per_s": window_reads.RATE,
+            "rounding": window_reads.ROUNDING, "k_stick_N_per_m": window_reads.K_STICK,
+            "ring_N": window_reads.RING, "step_frac": window_reads.STEP_FRAC}
+_SE_COLUMNS = {"rate_N_per_s": window_reads.SE_RATE, "rounding": window_reads.SE_ROUNDING,
+               "k_stick_N_per_m": window_reads.SE_K}
 
 
-def _drop_shape(rec: _Record, cyc: _Cycle, lv: _Levels, j: int,
-                feats: dict[str, FloatArray]) -> None:
-    """Ringing about the settled line after slip ``j`` and the drop's sharpness."""
-    drop = feats["drop_N"][j]
-    if not (np.isfinite(lv.trough) and np.isfinite(drop) and drop > 0):
-        return
-    t, dt, td, ft = rec.t, rec.dt, cyc.td, rec.ft_N
-    i_r0, i_r1 = rec.idx(td + dt), rec.idx(td + rec.settings.settle_s)
-    if i_r1 - i_r0 >= 4 and np.isfinite(lv.slope_after):
-        tr = t[i_r0:i_r1]
-        dev = ft[i_r0:i_r1] - (lv.trough + lv.slope_after * (lv.post_axis[i_r0:i_r1] - lv.post_at))
-        # weights ramp up over one sample from td + 1.5 dt, so the window start moves
-        # continuously with the drop time instead of jumping a whole sample
-        wgt = np.clip((tr - td - 1.5 * dt) / dt, 0.0, 1.0)
-        ms = float(wgt @ dev**2) / max(float(wgt.sum()), 1e-12)
-        feats["ring_N"][j] = float(np.sqrt(max(ms - rec.sigma_f**2, 0.0)))
-    w = rec.drop_window
-    n, i_pk, s = t.shape[0], cyc.i_pk, cyc.sign
-    falls = s * (ft[i_pk : min(i_pk + w, n - 1)] - ft[i_pk + 1 : min(i_pk + w + 1, n)])
-    if falls.size:
-        feats["step_frac"][j] = float(np.max(falls)) / drop
+def _read(rec: _Record, slips: SlipIndices, t_drop: FloatArray, win: _Windows,
+          feats: dict[str, FloatArray], se: dict[str, FloatArray]) -> FloatArray:
+    """Levels at each drop (line fits over the pre-drop ramp and the settled post-slip stick),
+    the loading ramp (early rate, K(i), rounding, their standard errors) and the drop's shape
+    (ringing about the settled line, sharpness), read by :func:`window_reads.read_windows`;
+    returns Fn at each drop."""
+    valid = (_ALL_VALID if rec.delta_valid is None
+             else np.ascontiguousarray(rec.delta_valid, dtype=np.bool_))
+    out = window_reads.read_windows(
+        rec.t, rec.ft_N, rec.delta_m, rec.fn_N, valid,
+        rec.x_drive if win.use_x.any() else rec.t, slips.i_peak.astype(np.intp),
+        slips.sign.astype(np.int64), t_drop, win.use_x, win.xs_td,
+        win.i_pre0, win.i_post0, win.i_post1, win.i_prev, win.length, win.i_early0,
+        win.i_early1, win.i_end0, win.i_ring0, rec.dt, rec.sigma_f, rec.sigma_d,
+        rec.drop_window)
+    for name, col in _COLUMNS.items():
+        feats[name] = out[:, col].copy()
+    for name, col in _SE_COLUMNS.items():
+        se[name] = out[:, col].copy()
+    fn_peak: FloatArray = out[:, window_reads.FN_PEAK].copy()
+    return fn_peak
 
 
 def _leave_out_load_changes(drive: DriveProfile, t_drop: FloatArray,
