@@ -1,0 +1,191 @@
+"""The vector one identification search moves (:mod:`rigctl.workbench.search`).
+
+Its coordinates are the internal coordinates of :class:`~rigctl.workbench.identify.FreeParam`
+(ln p for parameters whose bounds span more than a factor 20, p / scale otherwise), one per free
+parameter, and, where an effect spreads the elements' thresholds, log2 of the element count N
+(rounded to an integer where the model is built). Each coordinate has an initial standard deviation,
+a quarter of the interval where its optimum is expected (the CMA-ES rule for sigma0, Hansen, *The
+CMA Evolution Strategy: A Tutorial*, 2016, appendix B):
+
+* base parameters read from the events (friction levels, series stiffness): within a factor
+  :data:`BASE_FACTOR` of the start (ln p) or half their value (linear);
+* mass and drive damping where the data do not state them: within :data:`DYNAMICS_FACTOR`;
+* an effect's parameters over their *plausible range*: from the effect's off value to
+  :data:`EFFECT_REACH` times its typical magnitude (the library default minus off, carried to the
+  data's scale as :mod:`rigctl.workbench.data_scale` carries it), both signs where the bounds allow
+  them; the spread starts are drawn there too. A log-scaled effect parameter with no typical
+  deviation from off: within :data:`DYNAMICS_FACTOR` of its default;
+* the element count: within its bounds :data:`N_ELEMENTS_RANGE`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from rigctl.model.effects import Effect
+from rigctl.records.dataset import Dataset
+from rigctl.records.signals import FloatArray
+from rigctl.workbench.data_scale import NEAR_PRESET, scale_effect_values, scale_ratios
+from rigctl.workbench.fitting import campaign_scale
+from rigctl.workbench.identify import DYNAMIC_PARAMS, FreeParam, free_params
+from rigctl.workbench.model_choice import ModelChoice, effect_class
+from rigctl.workbench.search_pool import Point
+
+BASE_FACTOR = NEAR_PRESET
+"""A base parameter read from the events is expected within this factor of its data-scale start
+(the factor within which the data-scale rule itself treats two scales as alike)."""
+LINEAR_SPAN = 0.5
+"""A linear base parameter (a friction level, p_slope) is expected within this fraction of its
+start either way: the data-scale start reads the levels from the peaks and troughs directly."""
+DYNAMICS_FACTOR = 100.0
+"""Mass and drive damping not stated by the data, where the ringing does not tie the mass, are
+expected within this factor of their start: that start only carries the preset's slip frequency
+(880 Hz) and damping ratio to the data's stiffness, and rigs' slip frequencies differ by decades
+(a spring-slider's tens of Hz to a stiff contact's kHz): a factor 10 in frequency either way is
+a factor 100 in mass."""
+EFFECT_REACH = NEAR_PRESET
+"""An effect's plausible range reaches this many times its typical magnitude from off: the
+library defaults are typical sizes, carried to the data's scale by ratios that are themselves
+only trusted to a factor NEAR_PRESET."""
+N_ELEMENTS_RANGE = (2, 64)
+"""Element counts searched: from 2 (one element has no thresholds to spread) to 64, past which
+each of the N steps of the stick ramp is under 2 % of it, inside a record's force scatter, while
+a simulation's cost grows with N."""
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """The search vector: ``free``'s internal coordinates, then log2 N where ``count``."""
+
+    free: tuple[FreeParam, ...]
+    std: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    spread: dict[int, tuple[float, float]]
+    """Coordinates whose start is a guess, not a reading of the data (effect parameters, mass and
+    damping not stated, the element count), and their plausible interval (internal units): the
+    spread starts are drawn there."""
+    count: bool
+
+    @property
+    def dim(self) -> int:
+        return int(self.std.shape[0])
+
+    def point(self, x: FloatArray) -> Point:
+        """The evaluated point of vector ``x``: the free coordinates and the rounded count."""
+        x = np.clip(np.asarray(x, dtype=np.float64), self.lower, self.upper)
+        n_free = len(self.free)
+        n = round(2.0 ** float(x[n_free])) if self.count else None
+        return Point(x[:n_free].copy(), n)
+
+    def values(self, x: FloatArray) -> dict[str, float]:
+        """Parameter values of vector ``x`` (the element count included where searched)."""
+        p = self.point(x)
+        out = {fp.name: fp.to_p(float(u)) for fp, u in zip(self.free, p.u, strict=True)}
+        if p.n_elements is not None:
+            out["n_elements"] = float(p.n_elements)
+        return out
+
+    def vector(self, choice: ModelChoice) -> FloatArray:
+        """``choice``'s values as a vector (clipped to the bounds)."""
+        table = {p.name: p.value for p in choice.parameter_table()}
+        x = [fp.to_u(min(max(table[fp.name], fp.lower), fp.upper)) for fp in self.free]
+        if self.count:
+            x.append(math.log2(table["n_elements"]))
+        return np.clip(np.array(x, dtype=np.float64), self.lower, self.upper)
+
+
+def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
+                spreads_elements: bool) -> SearchSpace:
+    """The search space of ``choice`` on ``dataset``; ``ref`` (the data-scale start, or the choice
+    itself) sets the linear parameters' scales and the mass and damping's bounds."""
+    rig = dataset.rig
+    table = {p.name: p for p in ref.parameter_table()}
+    names = [n for n, p in table.items() if p.identify and n not in rig.fixed]
+    names += [n for n in DYNAMIC_PARAMS if n not in names and n not in rig.fixed
+              and not (n == "m_kg" and dataset.mass_from_ringing)]
+    free = free_params(ref, names, rig=rig)
+    ranges = effect_ranges(dataset, ref, [fp for fp in free if "." in fp.name])
+    out: list[FreeParam] = []
+    std: list[float] = []
+    spread: dict[int, tuple[float, float]] = {}
+    for i, fp in enumerate(free):
+        if fp.name in ranges:
+            lo, hi, typical = ranges[fp.name]
+            if not fp.log:  # scaled by the effect's own size, not by its value or bounds
+                fp = replace(fp, scale=typical)
+            u_lo, u_hi = sorted((fp.to_u(lo), fp.to_u(hi)))
+            spread[i] = (u_lo, u_hi)
+            std.append(0.25 * (u_hi - u_lo))
+        elif fp.name in DYNAMIC_PARAMS and fp.log:
+            v = table[fp.name].value
+            spread[i] = (fp.to_u(max(v / DYNAMICS_FACTOR, fp.lower)),
+                         fp.to_u(min(v * DYNAMICS_FACTOR, fp.upper)))
+            std.append(0.25 * (spread[i][1] - spread[i][0]))
+        else:
+            std.append(0.5 * math.log(BASE_FACTOR) if fp.log else LINEAR_SPAN / 2.0)
+        out.append(fp)
+    lower = [fp.u_bounds[0] for fp in out]
+    upper = [fp.u_bounds[1] for fp in out]
+    count = spreads_elements and "n_elements" not in rig.fixed
+    if count:
+        lo_n, hi_n = (math.log2(n) for n in N_ELEMENTS_RANGE)
+        lower.append(lo_n)
+        upper.append(hi_n)
+        spread[len(out)] = (lo_n, hi_n)
+        std.append(0.25 * (hi_n - lo_n))
+    return SearchSpace(tuple(out), np.array(std), np.array(lower), np.array(upper), spread, count)
+
+
+def effect_ranges(dataset: Dataset, choice: ModelChoice,
+                  free: list[FreeParam]) -> dict[str, tuple[float, float, float]]:
+    """Each free effect parameter's plausible range (lower, upper) in parameter units and its
+    typical size (the module docstring)."""
+    table = {p.name: p for p in choice.parameter_table()}
+    base = {n: p.value for n, p in table.items() if "." not in n}
+    scale = campaign_scale(dataset)
+    ratios: Mapping[str, float] = {}
+    if scale.usable:
+        rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
+        ratios = scale_ratios(scale, base, rate)
+    out: dict[str, tuple[float, float, float]] = {}
+    for effect in sorted({fp.name.split(".", 1)[0] for fp in free}):
+        cls = effect_class(effect, choice.effect_files)
+        if cls is None:
+            continue
+        eff: Effect = cls()
+        try:
+            offs = eff.off_values(base)
+        except NotImplementedError:
+            offs = {}
+        defaults = eff.default_values(base)
+        rows = [(f"{effect}.{k}", v, table[f"{effect}.{k}"].lower, table[f"{effect}.{k}"].upper,
+                 table[f"{effect}.{k}"].scales_with) for k, v in defaults.items()
+                if f"{effect}.{k}" in table]
+        defaults.update({k.split(".", 1)[1]: v for k, v in scale_effect_values(rows,
+                                                                               ratios).items()})
+        for fp in free:
+            if not fp.name.startswith(effect + "."):
+                continue
+            key = fp.name.split(".", 1)[1]
+            default = defaults.get(key, table[fp.name].value)
+            off = offs.get(key, default)
+            typical = default - off
+            if typical == 0.0 or (fp.log and off <= 0.0):
+                if not fp.log:  # no size to go by: a quarter of the allowed range
+                    typical = 0.25 * (fp.upper - fp.lower)
+                else:
+                    lo = max(default / DYNAMICS_FACTOR, fp.lower)
+                    hi = min(default * DYNAMICS_FACTOR, fp.upper)
+                    out[fp.name] = (lo, hi, default)
+                    continue
+            signed = fp.lower < off < fp.upper and fp.lower < 0.0
+            reach = EFFECT_REACH * abs(typical)
+            lo = off - reach if signed else min(off, off + EFFECT_REACH * typical)
+            hi = off + reach if signed else max(off, off + EFFECT_REACH * typical)
+            out[fp.name] = (max(lo, fp.lower), min(hi, fp.upper), abs(typical))
+    return out

@@ -1,0 +1,116 @@
+"""The one identification search (:mod:`rigctl.workbench.search`): right on another rig's scale,
+global where a local fit from off is stuck, within its budget, cancellable, with an ETA."""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import threading
+import time
+
+import pytest
+
+from rigctl.model import build_model
+from rigctl.model.noise import NoiseModel
+from rigctl.records.dataset import prepare_dataset
+from rigctl.workbench.budget import Budget, SearchCancelledError
+from rigctl.workbench.campaigns import simulate_campaign
+from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.identify import free_params, least_squares_fit
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
+
+# another rig's scale: a 50 N contact on a 2e4 N/m drive, a 20 g slider (the preset: 300 N,
+# 1.475e6 N/m, 48 g)
+RIG = {"k0_N_per_m": 2e4, "kts_N_per_m": 1e5, "m_kg": 0.02, "mu_s": 0.4, "mu_k": 0.3,
+       "mu_smax": 0.45, "kt0_N_per_m": 1.5e5, "c0_N_s_per_m": 0.4, "n_elements": 10}
+FN_N = 50.0
+K_EFF = 1.0 / (1.0 / RIG["k0_N_per_m"] + 1.0 / RIG["kts_N_per_m"])
+DROP_N = 2.0 * (RIG["mu_s"] - RIG["mu_k"]) * FN_N
+V_M_S = DROP_N / K_EFF / 3.0  # about 3 s per stick cycle
+NOISE = NoiseModel(ft_rms_N=0.005 * RIG["mu_s"] * FN_N, fn_rms_N=0.002 * FN_N,
+                   force_lsb_N=1e-4 * RIG["mu_s"] * FN_N, probe_rms_m=0.02 * DROP_N / K_EFF,
+                   probe_lsb_m=0.005 * DROP_N / K_EFF, stage_lsb_m=0.002 * DROP_N / K_EFF)
+
+
+def _campaign(protocol, effects=None, duration_scale=0.5, rate_hz=2000.0, fix=()):
+    model = build_model("paper", effects=list(effects or {}), params=RIG,
+                        effect_params=effects or {})
+    runs = simulate_campaign(model, protocol, seed=5, noise=NOISE, sample_rate_hz=rate_hz,
+                             fn_N=FN_N, velocity_m_s=V_M_S, duration_scale=duration_scale)
+    for run in runs:  # the simulated rig states its mass and damping; also state ``fix``
+        run.metadata.update({f"rig.{k}": str(RIG.get(k, 0.9)) for k in fix})
+    return prepare_dataset(runs)
+
+
+@pytest.fixture(scope="module")
+def short():
+    """A 15 s TLRE of the rig at 1 kHz: a few slips, for the budget, cancel and progress."""
+    return _campaign("tlre", duration_scale=0.25, rate_hz=1000.0)
+
+
+def _value(result, name):
+    return result.choice.values[name]
+
+
+@pytest.mark.slow
+def test_it_finds_the_generating_model_of_another_rig_from_the_preset():
+    dataset = _campaign("tlre")
+    truth = ModelChoice("paper").with_values(RIG)
+    e_truth = evaluate(dataset, truth).score.error
+    res = search_model(dataset, ModelChoice("paper"), workers=2, with_uncertainty=False)
+    assert not res.misses_most_slips
+    assert res.error <= 1.5 * e_truth
+    for name in ("mu_s", "mu_k", "mu_smax"):
+        assert _value(res, name) == pytest.approx(RIG[name], rel=0.03)
+    for name in ("k0_N_per_m", "kts_N_per_m"):
+        assert _value(res, name) == pytest.approx(RIG[name], rel=0.15)
+
+
+@pytest.mark.slow
+def test_it_finds_a_stribeck_velocity_a_local_fit_from_off_does_not():
+    # velocity steps at two loads; everything but mu_k and the Stribeck velocity stated
+    vs = 0.012
+    fix = ("k0_N_per_m", "kts_N_per_m", "mu_s", "mu_smax", "kt0_N_per_m", "p_slope",
+           "n_elements")
+    dataset = _campaign("velocity_steps", {"stribeck": {"vs_m_per_s": vs}}, duration_scale=0.2,
+                        rate_hz=1000.0, fix=fix)
+    off = ModelChoice("paper", ("stribeck",)).with_values(
+        {**RIG, "stribeck.vs_m_per_s": 0.0, "mu_k": 0.33})
+    base = least_squares_fit(dataset, off, free_params(off, ["mu_k"]), max_nfev=10)
+    local = least_squares_fit(dataset, base.choice,
+                              free_params(base.choice, ["mu_k", "stribeck.vs_m_per_s"]),
+                              max_nfev=20)
+    assert _value(local, "stribeck.vs_m_per_s") < 0.1 * vs  # stuck at off
+    res = search_model(dataset, base.choice, workers=2, with_uncertainty=False)
+    assert _value(res, "stribeck.vs_m_per_s") == pytest.approx(vs, rel=0.35)
+    assert res.error < 0.8 * local.error
+
+
+def test_the_budget_is_respected(short):
+    budget = Budget(max_evaluations=40)
+    res = search_model(short, ModelChoice("paper"), budget=budget, workers=2,
+                       with_uncertainty=False)
+    assert res.n_evaluations == budget.used <= 40
+    assert math.isfinite(res.error)
+
+
+def test_a_cancel_ends_the_search_and_its_workers_within_2_s(short):
+    budget = Budget(max_evaluations=100_000)
+    threading.Timer(1.5, budget.cancel).start()
+    t0 = time.monotonic()
+    with pytest.raises(SearchCancelledError):
+        search_model(short, ModelChoice("paper"), budget=budget, workers=2)
+    assert time.monotonic() - t0 < 1.5 + 2.0
+    assert not multiprocessing.active_children()
+
+
+def test_progress_reports_the_fraction_done_and_an_eta(short):
+    seen: list[tuple[float, float, str]] = []
+    budget = Budget(max_evaluations=60, progress=lambda f, eta, msg: seen.append((f, eta, msg)))
+    search_model(short, ModelChoice("paper"), budget=budget, workers=2, with_uncertainty=False)
+    etas = [eta for _, eta, _ in seen[:-1]]
+    assert etas and all(math.isfinite(e) and e > 0.0 for e in etas)
+    fractions = [f for f, _, _ in seen]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    assert seen[-1][1] == 0.0 and seen[-1][2] == "done"
