@@ -1,5 +1,6 @@
 """Figures of the workbench (matplotlib, Agg backend): overlays, loops, features, residual map,
-ranking and the error-fall chart. Each function writes one PNG and returns its path."""
+periodic patterns of the residual, ranking and the error-fall chart. Each function writes one PNG
+and returns its path."""
 
 from __future__ import annotations
 
@@ -18,8 +19,15 @@ from rigctl.model import SimResult
 from rigctl.records.dataset import Dataset
 from rigctl.records.feature_info import FEATURES
 from rigctl.records.features import COVARIATES, EVENT_FEATURES, EventTable
+from rigctl.workbench.periodic import sinusoid
 from rigctl.workbench.ranking import CandidateScore
-from rigctl.workbench.residual_map import COVARIATE_NAMES, ResidualMap, trend_matrix
+from rigctl.workbench.residual_map import (
+    COVARIATE_NAMES,
+    Pattern,
+    ResidualMap,
+    pattern_text,
+    trend_matrix,
+)
 
 MEAS = "#444444"
 MODEL = "#d62728"
@@ -160,6 +168,39 @@ def residual_heatmap(rmap: ResidualMap, path: Path) -> Path:
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
+
+
+_AXIS_SCALE: dict[str, tuple[float, str]] = {"cum_slip_m": (1e6, "um"), "t_s": (1.0, "s")}
+"""Each pattern covariate's axis: factor from SI and unit."""
+_RESIDUAL_SCALE: dict[str, tuple[float, str]] = {"m": (1e6, "um"), "s": (1e3, "ms")}
+"""A residual in metres or seconds is drawn in um or ms (ratio features in %, the rest in SI)."""
+
+
+def periodic_patterns(patterns: Sequence[Pattern], path: Path, max_panels: int = 4) -> Path:
+    """Each pattern's residual against its covariate, each run less its straight line (dots, one
+    colour per run), with the run's fitted sinusoid (line); the sentence of the map as title."""
+    shown = list(patterns[:max_panels])
+    fig, axes = plt.subplots(len(shown), 1, figsize=(10, 3.2 * len(shown)), squeeze=False)
+    for ax, p in zip(axes[:, 0], shown, strict=True):
+        info = FEATURES[p.feature]
+        xs, x_unit = _AXIS_SCALE[p.covariate]
+        ys, y_unit = (100.0, "%") if info.log else _RESIDUAL_SCALE.get(info.unit, (1.0, info.unit))
+        for k, run in enumerate(p.fit.runs):
+            colour = f"C{k % 10}"
+            ax.plot(run.x * xs, run.y * ys, ".", color=colour, ms=4, alpha=0.7)
+            grid = np.linspace(float(run.x.min()), float(run.x.max()), 400)
+            ax.plot(grid * xs, sinusoid(p.fit, run, grid) * ys, "-", color=colour, lw=1.2)
+        where = "track position in the run (cumulative slip)" if p.covariate == "cum_slip_m" \
+            else COVARIATE_NAMES[p.covariate]
+        ax.set_xlabel(f"{where} [{x_unit}]")
+        ax.set_ylabel(f"residual, less each run's line [{y_unit}]", fontsize=8)
+        ax.axhline(0.0, color="#bbbbbb", lw=0.8)
+        title = pattern_text(p)
+        if len(title) > 110:
+            cut = title.rfind(" ", 0, 110)
+            title = title[:cut] + "\n" + title[cut + 1:]
+        ax.set_title(title, fontsize=9, loc="left")
+    return _save(fig, path)
 
 
 def ranking(scores: Sequence[CandidateScore], baseline_error: float, path: Path) -> Path:

@@ -68,6 +68,7 @@ def _comparison_sections(cmp: Comparison, folder: Path, *, prefix: str = "",
         "</p>",
         "<h3>Where it fails</h3><ul>" + disc + "</ul>",
         f'<img src="{figs[3].name}">',
+        *_pattern_figure(cmp, folder, prefix),
         "<h3>Model against measurement</h3>",
         f'<img src="{figs[0].name}"><img src="{figs[1].name}"><img src="{figs[2].name}">',
         "<h3>Per-feature error</h3>",
@@ -80,6 +81,17 @@ def _comparison_sections(cmp: Comparison, folder: Path, *, prefix: str = "",
     if anchor is not None:
         body = [f'<section id="{html.escape(anchor)}">', *body, "</section>"]
     return body
+
+
+def _pattern_figure(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
+    """The residual's periods (docs/workbench.md section 4), drawn against where they repeat: only
+    when the map found one."""
+    if not cmp.rmap.patterns:
+        return []
+    png = plots.periodic_patterns(cmp.rmap.patterns, folder / f"{prefix}periodic.png")
+    return ["<p>Not a straight line: the residual against where it repeats, each run less its "
+            "straight line, with the fitted sinusoid (each run its own phase).</p>",
+            f'<img src="{png.name}">']
 
 
 def _image_section(cmp: Comparison, folder: Path, prefix: str) -> list[str]:

@@ -12,16 +12,23 @@ is taken in units of the feature's measured scatter (z). The map has four views:
 * against **covariates** (drive velocity, hold and stick time, Fn, cycle number, cumulative slip,
   Ft, dFt/dt, time): for every feature and covariate a straight-line fit z = a + b g(c), with
   g = ln for positive covariates spanning more than a decade (hold and stick times, velocities),
-  giving the trend's amplitude (b times the spread of g, in z) and its t statistic.
+  giving the trend's amplitude (b times the spread of g, in z) and its t statistic;
+* **beyond a straight line** (:attr:`ResidualMap.patterns`, :attr:`ResidualMap.correlations`,
+  computed when first read): a period against the slider's position along the track (its
+  cumulative slip in the run) and against time, and a correlation from slip to slip
+  (:mod:`rigctl.workbench.periodic`), each at a false-alarm probability of FAP_LEVEL over all the
+  tests of the map.
 
 :func:`discrepancies` turns the strongest structures into sentences such as "peaks after long
-holds are under-predicted by 3.1 N, growing with log stick time".
+holds are under-predicted by 3.1 N, growing with log stick time", the patterns first: "peaks rise
+and fall by +-0.5 N with a period of about 40 um of track".
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -30,6 +37,7 @@ from rigctl.records.feature_info import FEATURES
 from rigctl.records.features import COVARIATES, EVENT_FEATURES
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.metrics import RunComparison
+from rigctl.workbench.periodic import PeriodicFit, lag1_test, periodic_test, refit
 
 STICK_FEATURES = ("peak_N", "stick_s", "rate_N_per_s", "k_stick_N_per_m", "rounding", "lag_m")
 SLIP_FEATURES = ("trough_N", "drop_N", "ring_N", "step_frac", "slip_m", "drop_delay_s",
@@ -76,6 +84,39 @@ class Trend:
     """dz / dg"""
 
 
+PATTERN_COVARIATES: dict[str, str] = {"cum_slip_m": "of track", "t_s": ""}
+"""Covariates searched for a period, with the words after its period: the slider's position along
+the track (its cumulative slip in the run: where it stands when the slip starts) and time."""
+FAP_LEVEL = 0.01
+"""False-alarm probability of a reported pattern or correlation over all the tests of one map
+(Bonferroni: each test's own at FAP_LEVEL / number of tests), so that a model within the scatter
+gets a made-up pattern in at most about 1 map of 100."""
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """A period in a feature's residual (:mod:`rigctl.workbench.periodic`)."""
+
+    feature: str
+    covariate: str
+    fit: PeriodicFit
+    """Fitted to the physical residual (the feature's unit; ln for ratio features)."""
+    amplitude_z: float
+    """Semi-amplitude in scatter units."""
+    fap: float
+    """False-alarm probability over all the map's tests."""
+
+
+@dataclass(frozen=True)
+class Correlation:
+    """A slip-to-slip correlation of a feature's residual within runs."""
+
+    feature: str
+    r1: float
+    p: float
+    """False-alarm probability over all the map's tests."""
+
+
 @dataclass
 class ResidualMap:
     by_time: dict[str, FloatArray]
@@ -88,7 +129,22 @@ class ResidualMap:
     bias: dict[str, tuple[float, float]]
     """Per feature: (mean z, t statistic of the mean)."""
     table: dict[str, dict[str, FloatArray]]
-    """Per feature: z and the physical residual of every event ("z", "r") and each covariate."""
+    """Per feature: z and the physical residual of every event ("z", "r"), each covariate and the
+    run it belongs to ("run")."""
+
+    @cached_property
+    def structure(self) -> tuple[list[Pattern], list[Correlation]]:
+        """Periods and slip-to-slip correlations above FAP_LEVEL (module docstring), most
+        significant first."""
+        return find_structure(self.table)
+
+    @property
+    def patterns(self) -> list[Pattern]:
+        return self.structure[0]
+
+    @property
+    def correlations(self) -> list[Correlation]:
+        return self.structure[1]
 
 
 def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict[str, FloatArray]]:
@@ -101,6 +157,8 @@ def _event_table(dataset: Dataset, comps: list[RunComparison]) -> dict[str, dict
         for cov in COVARIATES:
             cols[cov] = np.concatenate([run.events.covariates[cov] for run in dataset.runs])
         cols["stage"] = np.concatenate([run.events.stage.astype(float) for run in dataset.runs])
+        cols["run"] = np.concatenate([np.full(run.events.n, float(i))
+                                      for i, run in enumerate(dataset.runs)])
         cols["t_frac"] = np.concatenate(
             [run.events.t_drop_s / max(run.n_samples / run.sample_rate_hz, 1e-9)
              for run in dataset.runs]
@@ -179,13 +237,62 @@ def residual_map(dataset: Dataset, comps: list[RunComparison]) -> ResidualMap:
     return ResidualMap(by_time, by_stage, by_phase, trends, bias, table)
 
 
+def _by_run(cols: dict[str, FloatArray], key: str) -> list[FloatArray]:
+    runs = cols["run"]
+    return [cols[key][runs == i] for i in np.unique(runs)]
+
+
+def find_structure(table: dict[str, dict[str, FloatArray]]
+                   ) -> tuple[list[Pattern], list[Correlation]]:
+    """Per feature the strongest period against each of PATTERN_COVARIATES and the slip-to-slip
+    correlation of its z residuals; kept where the false-alarm probability times the number of
+    tests run is at most FAP_LEVEL and the structure is as large as a trend must be
+    (TREND_AMPLITUDE_MIN: a sinusoid's RMS, amplitude / sqrt 2, or the RMS of the part the previous
+    slip predicts, r1 times the residual's RMS, at least one scatter unit). A feature keeps its
+    strongest period only."""
+    found: list[tuple[str, str, PeriodicFit]] = []
+    lags: list[tuple[str, float, float]] = []
+    n_tests = 0
+    for name, cols in table.items():
+        zs = _by_run(cols, "z")
+        for cov in PATTERN_COVARIATES:
+            fit = periodic_test(_by_run(cols, cov), zs)
+            if fit is not None:
+                n_tests += 1
+                found.append((name, cov, fit))
+        lag = lag1_test(_by_run(cols, "t_s"), zs)
+        if lag is not None:
+            n_tests += 1
+            z = np.concatenate(zs)
+            rms = float(np.sqrt(np.nanmean((z - np.nanmean(z)) ** 2)))
+            if abs(lag.r1) * rms >= TREND_AMPLITUDE_MIN:
+                lags.append((name, lag.r1, lag.p))
+    patterns: list[Pattern] = []
+    for name, cov, fit in sorted(found, key=lambda f: f[2].fap):
+        fap = min(1.0, fit.fap * n_tests)
+        if fap > FAP_LEVEL or fit.amplitude / math.sqrt(2) < TREND_AMPLITUDE_MIN \
+                or any(p.feature == name for p in patterns):
+            continue
+        cols = table[name]
+        phys = refit(fit, _by_run(cols, cov), _by_run(cols, "r"))
+        patterns.append(Pattern(name, cov, phys, fit.amplitude, fap))
+    correlations = [Correlation(name, r1, min(1.0, p * n_tests))
+                    for name, r1, p in sorted(lags, key=lambda c: c[2])
+                    if p * n_tests <= FAP_LEVEL]
+    return patterns, correlations
+
+
 FACTOR_FROM = 3.0
 """A ratio feature off by this factor or more is said as "by a factor of N", not in percent."""
 
 
 def _amount(name: str, r: FloatArray) -> str:
+    return _size(name, float(np.mean(r)))
+
+
+def _size(name: str, m: float) -> str:
+    """A residual of ``m`` (the feature's unit; ln for ratio features) in words, without sign."""
     info = FEATURES[name]
-    m = float(np.mean(r))
     if info.log:
         if abs(m) >= math.log(FACTOR_FROM):  # "36265 %" says less than "a factor of 364"
             return f"a factor of {math.exp(abs(m)):.3g}"
@@ -224,14 +331,46 @@ def significant_trends(rmap: ResidualMap) -> list[Trend]:
     ]
 
 
+def _period(cov: str, period: float) -> str:
+    if cov == "t_s":
+        return f"{period:.2g} s"
+    if period < 1e-3:
+        return f"{period * 1e6:.2g} um"
+    return f"{period * 1e3:.2g} mm"
+
+
+def pattern_text(p: Pattern) -> str:
+    """"peaks rise and fall by +-0.52 N with a period of about 40 um of track (false-alarm
+    probability 1e-06)"."""
+    where = PATTERN_COVARIATES[p.covariate]
+    period = _period(p.covariate, p.fit.period) + (f" {where}" if where else "")
+    return (f"{FEATURES[p.feature].phrase} rise and fall by +-{_size(p.feature, p.fit.amplitude)} "
+            f"with a period of about {period} (false-alarm probability {p.fap:.1g})")
+
+
+def correlation_text(c: Correlation) -> str:
+    how = "are correlated" if c.r1 > 0 else "alternate"
+    return (f"{FEATURES[c.feature].phrase} {how} from slip to slip (lag-1 autocorrelation "
+            f"{c.r1:.2f} within runs, false-alarm probability {c.p:.1g})")
+
+
 def discrepancies(rmap: ResidualMap, limit: int = 5) -> list[str]:
-    """The largest structured discrepancies, in words (one per feature, strongest first)."""
+    """The largest structured discrepancies, in words: periods first (a straight-line trend they
+    cause follows them), then slip-to-slip correlations, then trends and biases, strongest first.
+    A feature's period or correlation stands for its own straight-line trends (which a sinusoid over
+    a few cycles makes); its bias, which neither says, may follow."""
+    structured = [pattern_text(p) for p in rmap.patterns]
+    used: set[str] = {p.feature for p in rmap.patterns}
+    for cor in rmap.correlations:
+        if cor.feature not in used:
+            used.add(cor.feature)
+            structured.append(correlation_text(cor))
     candidates: list[tuple[float, str]] = []
-    used: set[str] = set()
+    trended: set[str] = set()
     for tr in significant_trends(rmap):
-        if tr.feature in used:
+        if tr.feature in used or tr.feature in trended:
             continue
-        used.add(tr.feature)
+        trended.add(tr.feature)
         cols = rmap.table[tr.feature]
         z, r, c = cols["z"], cols["r"], cols[tr.covariate]
         ok = np.isfinite(z) & np.isfinite(c)
@@ -260,7 +399,8 @@ def discrepancies(rmap: ResidualMap, limit: int = 5) -> list[str]:
                     f"{_amount(tr.feature, r[sel])}, {grows} with {cov}")
         candidates.append((tr.amplitude_z * abs(tr.t_stat) ** 0.5, text))
     for name, (mz, t) in rmap.bias.items():
-        if name in used or abs(t) < TREND_T_MIN or abs(mz) < TREND_AMPLITUDE_MIN:
+        # a period or a correlation leaves the mean to be said; a trend says it
+        if name in trended or abs(t) < TREND_T_MIN or abs(mz) < TREND_AMPLITUDE_MIN:
             continue
         r = rmap.table[name]["r"]
         r = r[np.isfinite(r)]
@@ -268,4 +408,4 @@ def discrepancies(rmap: ResidualMap, limit: int = 5) -> list[str]:
             "throughout"
         candidates.append((abs(mz) * abs(t) ** 0.5, text))
     candidates.sort(key=lambda x: x[0], reverse=True)
-    return [text for _, text in candidates[:limit]]
+    return (structured + [text for _, text in candidates])[:limit]
