@@ -1,0 +1,203 @@
+"""Which effects a model needs: forward selection and backward elimination over one search.
+
+(New; not yet used by ``diagnose``. docs/workbench.md, "Choosing the effects".)
+
+The candidates of a step are *effect sets*: every library effect (and plug-in) the model lacks on
+its own, and pairs of them. A pair is the same kind of candidate as a single effect, fitted by the
+same search and judged by the same rule; it exists because two effects can each leave most of a
+joint signature unexplained (each alone is not significant) while together they are.
+
+One step:
+
+1. **Screen** every single effect with a short fit (``screen``: the same search on a small
+   budget). The short fit's error ranks the candidates; the best ``SCREEN_KEEP`` singles go on.
+2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
+   ``SCREEN_KEEP`` pairs go on.
+3. **Fit** the kept sets fully (``fit``) and score each against the model
+   (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as the
+   samples, at least 10 % of the error, E^2 down by 0.5).
+4. **Add** the best significant single; a pair instead only where it is significant against that
+   single (or against the model, where no single is): forward selection takes two effects at once
+   only where the data demand both.
+
+Steps repeat until nothing is significant (or ``max_steps``). Then **backward elimination**: each
+effect of the final model is refitted out (the model without it, from the final values); an effect
+whose removal is not significantly worse by the same rule goes, the weakest first, until every
+effect left earns its place. Forward and backward use one rule, so a model the procedure returns
+is one from which no single addition or removal is significant.
+
+Everything that fits is injected (``fit``, ``screen``: ``(dataset, choice) -> FitResult``), so the
+procedure is independent of how one model is identified (:mod:`rigctl.workbench.search`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from rigctl.records.dataset import Dataset
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import CandidateScore, score_candidate
+
+FitFn = Callable[[Dataset, ModelChoice], FitResult]
+"""Identify one model on a dataset (its current values are the search's start)."""
+Say = Callable[[str], None]
+
+SCREEN_KEEP = 3
+"""Singles (and pairs) a screen passes to the full fit. A short fit ranks candidates with the noise
+of an unfinished search; the candidate that a full fit would rank first is among the first three of
+the screen unless the screen's errors differ by less than their own spread, which keeping three
+allows for at a third of the cost of fitting everything."""
+PAIR_POOL = 4
+"""Pairs are formed from the best this many screened singles (six pairs): an effect of an
+interacting pair still lowers the error alone, if less than significantly, and so ranks near the
+top of the singles' screen."""
+MAX_STEPS = 5
+"""Forward steps at most (each adds one or two effects): bounds the run time on data that keep
+rewarding more parameters."""
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One candidate set fitted on a model: its fit and its evidence against that model."""
+
+    effects: tuple[str, ...]
+    fit: FitResult
+    score: CandidateScore
+    screened_error: float
+    """The short fit's error (the screen's ranking)."""
+
+    @property
+    def name(self) -> str:
+        return " + ".join(self.effects)
+
+
+@dataclass(frozen=True)
+class Step:
+    """One change of the model: effects added (forward) or removed (backward)."""
+
+    kind: str
+    """``add`` or ``remove``."""
+    effects: tuple[str, ...]
+    error_before: float
+    error_after: float
+    delta_bic: float
+    model: FitResult
+
+
+@dataclass
+class Selection:
+    """The outcome: the model at each step, and every round's trials (for the ranking tables)."""
+
+    base: FitResult
+    final: FitResult
+    steps: list[Step] = field(default_factory=list)
+    rounds: list[list[Trial]] = field(default_factory=list)
+
+
+def with_effects(choice: ModelChoice, effects: Sequence[str]) -> ModelChoice:
+    """``choice`` with ``effects`` added (their parameters at their defaults)."""
+    for name in effects:
+        choice = choice.with_effect(name)
+    return choice
+
+
+def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
+    """``choice`` without ``effect`` (its parameters dropped, the others kept)."""
+    prefix = f"{effect}."
+    values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
+    return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
+                       choice.effect_files)
+
+
+def _score(name: str, base: FitResult, cand: FitResult, n_events: int) -> CandidateScore:
+    return score_candidate(name, base.error, cand.error, n_events, cand.n_params - base.n_params)
+
+
+def _finite(e: float) -> float:
+    return e if math.isfinite(e) else math.inf
+
+
+def forward_step(
+    dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
+    say: Say,
+) -> tuple[Trial | None, list[Trial]]:
+    """One forward step from ``model``: the set to add (None: nothing significant) and the trials.
+    """
+    n = dataset.n_events
+
+    def short(effects: tuple[str, ...]) -> tuple[tuple[str, ...], float]:
+        res = screen(dataset, with_effects(model.choice, effects))
+        say(f"  screened {' + '.join(effects)}: {res.error:.3g}")
+        return effects, _finite(res.error)
+
+    singles = sorted((short((c,)) for c in pool), key=lambda s: s[1])
+    pair_sets = [tuple(sorted((a[0][0], b[0][0])))
+                 for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
+    pairs = sorted((short(p) for p in pair_sets), key=lambda s: s[1])
+    trials: list[Trial] = []
+    for effects, e_screen in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
+        res = fit(dataset, with_effects(model.choice, effects))
+        name = " + ".join(effects)
+        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}")
+        trials.append(Trial(effects, res, _score(name, model, res, n), e_screen))
+    trials.sort(key=lambda t: _finite(t.fit.error))
+    best_single = next((t for t in trials if len(t.effects) == 1 and t.score.significant), None)
+    best_pair = next((t for t in trials if len(t.effects) == 2 and t.score.significant), None)
+    if best_pair is not None:
+        against = best_single.fit if best_single is not None else model
+        if _score(best_pair.name, against, best_pair.fit, n).significant:
+            return best_pair, trials
+    return best_single, trials
+
+
+def backward_elimination(
+    dataset: Dataset, model: FitResult, *, fit: FitFn, protected: Sequence[str], say: Say,
+) -> tuple[FitResult, list[Step]]:
+    """Remove, weakest first, every effect of ``model`` (but ``protected``, the user's) whose
+    removal is not significantly worse."""
+    steps: list[Step] = []
+    while True:
+        outs: list[tuple[str, FitResult, CandidateScore]] = []
+        for effect in (e for e in model.choice.effects if e not in protected):
+            rest = fit(dataset, without_effect(model.choice, effect))
+            outs.append((effect, rest, _score(effect, rest, model, dataset.n_events)))
+            say(f"  without {effect}: {rest.error:.3g} (with it {model.error:.3g})")
+        weak = [o for o in outs if not o[2].significant]
+        if not weak:
+            return model, steps
+        effect, rest, sc = max(weak, key=lambda o: o[2].delta_bic)
+        say(f"removing {effect}: it does not earn its place ({model.error:.3g} with it, "
+            f"{rest.error:.3g} without)")
+        steps.append(Step("remove", (effect,), model.error, rest.error, -sc.delta_bic, rest))
+        model = rest
+
+
+def select_effects(
+    dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
+    max_steps: int = MAX_STEPS, say: Say = lambda _m: None,
+) -> Selection:
+    """Forward selection from ``base`` over ``pool``, then backward elimination (module docstring).
+    Effects ``base`` already has are the user's and are never removed."""
+    sel = Selection(base, base)
+    model, pool = base, list(pool)
+    for _ in range(max_steps):
+        if not pool:
+            break
+        chosen, trials = forward_step(dataset, model, pool, fit=fit, screen=screen, say=say)
+        sel.rounds.append(trials)
+        if chosen is None:
+            break
+        say(f"adding {chosen.name}: {model.error:.3g} -> {chosen.fit.error:.3g}")
+        sel.steps.append(Step("add", chosen.effects, model.error, chosen.fit.error,
+                              chosen.score.delta_bic, chosen.fit))
+        model = chosen.fit
+        pool = [c for c in pool if c not in chosen.effects]
+    model, removals = backward_elimination(dataset, model, fit=fit,
+                                           protected=base.choice.effects, say=say)
+    sel.steps += removals
+    sel.final = model
+    return sel

@@ -1,0 +1,136 @@
+"""Forward selection and backward elimination (rigctl/workbench/selection.py) with the fits replaced
+by a table of errors: what is under test is which sets are screened, fitted, added and removed."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import SimpleNamespace
+from typing import Any, cast
+
+import pytest
+
+from rigctl.records.dataset import Dataset
+from rigctl.workbench import selection as sel
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+
+N_EVENTS = 200
+DATASET = cast(Dataset, SimpleNamespace(n_events=N_EVENTS))
+
+
+class Table:
+    """Fits that return the error of each effect set (order-free); unknown sets: the base's.
+    Records which sets were fully fitted and which only screened."""
+
+    def __init__(self, errors: Mapping[frozenset[str], float], screen_offset: float = 0.0,
+                 screen_errors: Mapping[frozenset[str], float] | None = None,
+                 warm_errors: Mapping[frozenset[str], float] | None = None) -> None:
+        self.errors = dict(errors)
+        self.warm_errors = dict(warm_errors or {})
+        """Errors of a refit started from the values of a fit with more effects (``warm`` set):
+        a search from a better start can end lower than the same model's earlier fit."""
+        self.screen_errors = dict(screen_errors or {})
+        self.screen_offset = screen_offset
+        self.fitted: list[frozenset[str]] = []
+        self.screened: list[frozenset[str]] = []
+
+    def _result(self, choice: ModelChoice, error: float) -> FitResult:
+        free = ("mu_s", "mu_k", *(f"{e}.p" for e in choice.effects))
+        if len(choice.effects) >= 2:
+            choice = choice.with_values({"warm": 1.0})
+        return FitResult(choice, error, {}, free)
+
+    def fit(self, _ds: Any, choice: ModelChoice) -> FitResult:
+        key = frozenset(choice.effects)
+        self.fitted.append(key)
+        if "warm" in choice.values and key in self.warm_errors:
+            return self._result(choice, self.warm_errors[key])
+        return self._result(choice, self.errors.get(key, self.errors[frozenset()]))
+
+    def screen(self, _ds: Any, choice: ModelChoice) -> FitResult:
+        key = frozenset(choice.effects)
+        self.screened.append(key)
+        e = self.screen_errors.get(key, self.errors.get(key, self.errors[frozenset()]))
+        return self._result(choice, e + self.screen_offset)
+
+
+def S(*names: str) -> frozenset[str]:
+    return frozenset(names)
+
+
+POOL = ("a", "b", "c", "d", "e")
+
+
+def _select(table: Table, base_effects: tuple[str, ...] = ()) -> sel.Selection:
+    base = table.fit(DATASET, ModelChoice("paper", base_effects))
+    table.fitted.clear()
+    return sel.select_effects(DATASET, base, [p for p in POOL if p not in base_effects],
+                              fit=table.fit, screen=table.screen)
+
+
+def test_the_best_significant_single_is_added_and_nothing_after_it():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0, S("a", "b"): 3.9, S("a", "c"): 3.95})
+    out = _select(t)
+    assert [(s.kind, s.effects) for s in out.steps] == [("add", ("a",))]
+    assert out.final.choice.effects == ("a",)
+    assert out.final.error == 4.0
+
+
+def test_a_pair_is_added_where_neither_effect_alone_is_significant():
+    # each alone removes 5 % of the error (not significant); together 60 %
+    t = Table({S(): 10.0, S("a"): 9.5, S("b"): 9.5, S("a", "b"): 4.0})
+    out = _select(t)
+    assert out.steps[0].effects == ("a", "b")
+    assert set(out.final.choice.effects) == {"a", "b"}
+
+
+def test_a_pair_no_better_than_its_best_single_is_not_taken():
+    # the pair beats the base but gains too little over "a" alone for its extra parameter
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.0, S("a", "b"): 3.95})
+    out = _select(t)
+    assert out.steps[0].effects == ("a",)
+    assert out.final.choice.effects == ("a",)
+
+
+def test_only_the_best_screened_sets_are_fitted_fully():
+    # "e" would be the best, but its short fit ranks it last: the screen decides what is fitted
+    t = Table({S(): 10.0, S("a"): 6.0, S("b"): 6.5, S("c"): 7.0, S("d"): 7.5, S("e"): 3.0},
+              screen_errors={S("e"): 9.9})
+    _select(t)
+    first_round = t.fitted[: 2 * sel.SCREEN_KEEP]
+    assert S("e") not in first_round
+    assert {S("a"), S("b"), S("c")} <= set(first_round)
+    assert len(t.screened) >= len(POOL)  # every single was screened
+
+
+def test_backward_elimination_removes_an_effect_the_later_one_made_redundant():
+    # "a" is added first (b's first fit stops at 5.5), then "b"; refitted from the a + b model
+    # without "a", "b" alone reaches 2.02: "a" no longer earns its place
+    t = Table({S(): 10.0, S("a"): 5.0, S("b"): 5.5, S("a", "b"): 2.0, S("a", "c"): 4.9},
+              warm_errors={S("b"): 2.02, S("a"): 4.0})
+    out = _select(t)
+    kinds = [(s.kind, s.effects) for s in out.steps]
+    assert ("remove", ("a",)) in kinds
+    assert out.final.choice.effects == ("b",)
+
+
+def test_effects_the_user_gave_are_never_removed():
+    t = Table({S(): 10.0, S("a"): 10.0, S("a", "b"): 4.0, S("b"): 4.0})
+    out = _select(t, base_effects=("a",))
+    assert "a" in out.final.choice.effects
+    assert all(s.effects != ("a",) for s in out.steps if s.kind == "remove")
+
+
+def test_nothing_is_added_when_nothing_is_significant():
+    t = Table({S(): 1.05, S("a"): 1.0, S("b"): 1.01, S("a", "b"): 0.98})
+    out = _select(t)
+    assert out.steps == []
+    assert out.final is out.base
+    assert len(out.rounds) == 1
+
+
+@pytest.mark.parametrize("effects", [("a",), ("a", "b")])
+def test_with_and_without_effects_round_trip(effects):
+    choice = sel.with_effects(ModelChoice("paper"), effects).with_values({"a.p": 1.0, "mu_s": 0.2})
+    back = sel.without_effect(choice, "a")
+    assert "a" not in back.effects and "a.p" not in back.values and back.values["mu_s"] == 0.2
