@@ -161,7 +161,7 @@ def extract_events(
     rec = _Record(t, ft_N, delta_m, fn_N, drive, settings, delta_valid)
     if slips is None:
         slips = detect_slips(t, rec.ft_N, rec.delta_m, settings.detection, delta_valid,
-                             v_drive_m_s=drive.sliding_velocity_at(t), fn_N=rec.fn_N,
+                             v_drive_m_s=_sliding_velocity(drive, t), fn_N=rec.fn_N,
                              dt_s=rec.dt if t.size > 1 else None,
                              delta_noise_m=rec.sigma_d if delta_valid is None else None)
     n_ev = slips.n
@@ -201,6 +201,17 @@ def extract_events(
             init_k = _initial_curve(ft_N, delta_m, i_m, int(slips.i_peak[0]), peak0, f0,
                                     rec.sigma_f, delta_valid)
     return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy(), se)
+
+
+def _sliding_velocity(drive: DriveProfile, t: FloatArray) -> FloatArray:
+    """``drive.sliding_velocity_at(t)`` for increasing sample times ``t``: each protocol phase's
+    velocity (0 in holds) repeated over its samples (a search per phase, not per sample)."""
+    starts = drive.t_s[drive.phase_knots[:-1]]
+    bounds = np.searchsorted(t, starts[1:], side="left")
+    counts = np.diff(np.concatenate([[0], bounds, [t.shape[0]]]))
+    per_phase = np.where(drive.phase_is_hold, 0.0, drive.phase_velocity)
+    out: FloatArray = np.repeat(per_phase, counts)
+    return out
 
 
 class _Record:

@@ -23,7 +23,7 @@ from rigctl.model.noise import NoiseModel
 from rigctl.records import sample_stats
 from rigctl.records.drive_profile import DriveProfile, drive_profile
 from rigctl.records.events import DetectionSettings, SlipIndices, detect_slips
-from rigctl.records.features import EventTable, ReadSettings, extract_events
+from rigctl.records.features import EventTable, ReadSettings, _sliding_velocity, extract_events
 from rigctl.workbench.campaigns import simulate_campaign
 from tests.records import reference_events as ref
 
@@ -162,6 +162,18 @@ def test_a_real_record_with_probes_over_range_reads_the_same() -> None:
     n = _check_record(run.t_s, run.ft_N, run.delta_m, run.fn_N, drive, ReadSettings(det), valid,
                       "ens over range")
     assert n > 10
+
+
+def test_the_drive_velocity_by_phase_is_the_drives_own_per_sample() -> None:
+    """The detector's drive velocity, repeated per phase, is DriveProfile.sliding_velocity_at:
+    velocity steps and holds, a reciprocating tribometer's 200 strokes."""
+    runs = simulate_campaign(build_model("paper"), "slide_hold_slide", seed=1,
+                             duration_scale=0.3)
+    runs += load_runs([REAL / "tribometer_frictionmodels.csv"])
+    for run in runs:
+        drive = drive_profile(run)
+        t = run.t_s - run.t_s[0]
+        assert np.array_equal(_sliding_velocity(drive, t), drive.sliding_velocity_at(t))
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 127, 128, 129, 130, 257, 1000, 4099, 30011])
