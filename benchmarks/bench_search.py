@@ -1,0 +1,120 @@
+"""The one search against the old identification chain, side by side, on held-out rigs.
+
+``python -m benchmarks.bench_search [--cases N] [--first I] [--seed S] [--workers N] [--jsonl FILE]``
+
+Cases are drawn as :mod:`benchmarks.bench_other_rigs` draws them (its rig, campaign and noise
+generators; the same case for the same seed and index), restricted to controls and one-effect
+cases. Identification only, no diagnosis: a control is identified as ``paper``; a one-effect case
+as ``paper`` + its hidden effect (the effect given), by the old chain (``fitting.identify_model``
+of the base, then ``fitting.fit_candidate`` of the effect on it) and by the new search
+(``search.search_model`` of ``paper`` + effect from the preset). Each prints the error reached, the
+generating model's own error on the same data, the evaluations and the wall seconds. Nothing
+asserts: the figures are for the report (issue 34).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks.bench_other_rigs import HIDEABLE, MIN_EVENTS, NOISE_FACTOR_RANGE, RATE_RANGE_HZ, draw_rig
+from benchmarks.bench_other_rigs import _campaign as campaign
+from benchmarks.bench_other_rigs import _log_uniform as log_uniform
+from rigctl.data import DataError
+from rigctl.errors import SimulationError
+from rigctl.model import ParameterError
+from rigctl.records.dataset import Dataset, prepare_dataset
+from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.fitting import CandidateTask, fit_candidate, identify_model
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
+
+HIDDEN_PATTERN = (0, 1)
+"""Hidden effects per case, cycling: controls and one-effect cases (identification of a given
+model; two-effect cases are a diagnosis's business)."""
+
+
+def draw_case(i: int, seed: int) -> tuple[Dataset, ModelChoice, tuple[str, ...]]:
+    """Case ``i`` of ``seed``: drawn as bench_other_rigs.run_case draws its rig and campaign."""
+    rng = np.random.default_rng(seed * 7919 + i)
+    n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
+    hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
+    for _attempt in range(20):
+        rig = draw_rig(rng)
+        rate_hz = log_uniform(rng, *RATE_RANGE_HZ)
+        noise_factor = log_uniform(rng, *NOISE_FACTOR_RANGE)
+        runs, _protocols, truth = campaign(rng, rig, hidden, rate_hz, noise_factor, seed)
+        try:
+            tlre = prepare_dataset([r for r in runs if r.source.startswith("tlre")])
+        except DataError:
+            continue
+        if tlre.n_events >= MIN_EVENTS:
+            return prepare_dataset(runs), truth, hidden
+    raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
+
+
+def _old(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    base = identify_model(dataset, ModelChoice("paper"), with_uncertainty=not hidden,
+                          workers=workers)
+    res, n = base, base.n_evaluations
+    if hidden:
+        res = fit_candidate(CandidateTask(dataset, base, hidden[0]), with_uncertainty=True)
+        n += res.n_evaluations
+    return {"error": res.error, "evaluations": n, "wall_s": time.perf_counter() - t0}
+
+
+def _new(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    res = search_model(dataset, ModelChoice("paper", hidden), workers=workers)
+    return {"error": res.error, "evaluations": res.n_evaluations,
+            "wall_s": time.perf_counter() - t0}
+
+
+def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
+    dataset, truth, hidden = draw_case(i, seed)
+    try:
+        truth_err = float(evaluate(dataset, truth).score.error)
+    except (SimulationError, ParameterError):
+        truth_err = math.nan
+    return {"case": i, "seed": seed, "hidden": list(hidden), "n_events": dataset.n_events,
+            "truth_error": truth_err, "old": _old(dataset, hidden, workers),
+            "new": _new(dataset, hidden, workers)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=4)
+    ap.add_argument("--first", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--jsonl", default="")
+    args = ap.parse_args(argv if argv is not None else
+                        [a for a in sys.argv[1:] if a not in ("--quick", "--json")])
+    rows = []
+    for i in range(args.first, args.first + args.cases):
+        row = run_case(i, args.seed, args.workers)
+        rows.append(row)
+        line = json.dumps(row)
+        print(line, flush=True)
+        if args.jsonl:
+            with open(args.jsonl, "a", encoding="utf-8") as fh:
+                fh.write(line + "\n")
+    print(f"{'case':>6} {'hidden':<24} {'truth':>7} {'old E':>7} {'new E':>7} {'old n':>6} "
+          f"{'new n':>6} {'old s':>7} {'new s':>7}")
+    for r in rows:
+        o, n = r["old"], r["new"]
+        print(f"{r['seed']}/{r['case']:<4} {','.join(r['hidden']) or '-':<24} "
+              f"{r['truth_error']:7.3g} {o['error']:7.3g} {n['error']:7.3g} "
+              f"{o['evaluations']:6d} {n['evaluations']:6d} {o['wall_s']:7.1f} {n['wall_s']:7.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
