@@ -20,13 +20,16 @@ import numpy as np
 from rigctl.status import RunStatus
 
 FORMAT_NAME = "rigctl_run"
-FORMAT_VERSION = "1.0"
+FORMAT_VERSION = "1.1"
 LIBVER: tuple[Literal["v110"], Literal["v110"]] = ("v110", "v110")
 """Library version bounds: the oldest format with SWMR, readable by HDF5 >= 1.10 tools."""
 
 ENTRY = "entry"
 DAQ = "entry/daq"
 DAQ_BLOCKS = "entry/daq/blocks"
+ROWS_VALID = "entry/daq/rows_valid"
+"""(2,) int64: DAQ samples and block-table rows the writer knows are on disk (written, then
+flushed); a reader reads no further. Absent in files written before format 1.1."""
 CAMERA = "entry/camera"
 EVENTS = "entry/events"
 PLOT = "entry/plot"

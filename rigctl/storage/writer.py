@@ -41,6 +41,7 @@ from rigctl.data import DataError, FloatArray
 from rigctl.storage import layout
 from rigctl.storage.errors import StorageError
 from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES, check_output_path, estimate_run_bytes
+from rigctl.storage.text import one_line
 from rigctl.teardown import keep_alive
 
 DEFAULT_FLUSH_INTERVAL_S = 0.25
@@ -110,6 +111,8 @@ class RunWriter:
         self._channels = {name: d[name] for name in self.daq.channels}
         b = self._file[layout.DAQ_BLOCKS]
         self._blocks = {key: b[key] for key in ("first_sample", "counter", "host_time", "dropped")}
+        self._rows_valid: h5py.Dataset = self._file[layout.ROWS_VALID]
+        self._marked_valid = (0, 0)
         self._n_samples = 0
         self._n_blocks = 0
         self._last_t_s = -np.inf
@@ -237,15 +240,34 @@ class RunWriter:
             )
 
     def flush(self) -> None:
-        """Write pending samples and make everything written so far visible to readers on disk."""
+        """Write pending samples and make everything written so far visible to readers on disk;
+        then (a second, small flush) record them as valid in ``daq/rows_valid``."""
         if self._closed:
             return
         self._write_pending()
+        self._flush_file()
+        self._mark_valid()
+        self._last_flush = time.monotonic()
+
+    def _flush_file(self) -> None:
         try:
             self._file.flush()
-        except OSError as exc:
-            raise StorageError(f"flush failed: {exc}", path=self.path) from exc
-        self._last_flush = time.monotonic()
+        except (OSError, RuntimeError) as exc:  # h5py raises either for a failed write
+            raise StorageError(f"flush failed: {one_line(exc)}", path=self.path) from exc
+
+    def _mark_valid(self) -> None:
+        """Record the rows written so far as valid: call only after a flush that succeeded, so that
+        ``rows_valid`` never counts rows that did not reach the disk (a full disk fails the flush
+        and leaves the dataset lengths ahead of the data; readers read no further than this)."""
+        rows = (self._n_samples, self._n_blocks)
+        if rows == self._marked_valid:
+            return
+        try:
+            self._rows_valid[:] = np.array(rows, dtype=np.int64)
+        except (OSError, RuntimeError) as exc:
+            raise StorageError(f"write failed: {one_line(exc)}", path=self.path) from exc
+        self._flush_file()
+        self._marked_valid = rows
 
     def close(
         self, status: layout.RunStatus = layout.RunStatus.COMPLETED, error: str | None = None
@@ -262,6 +284,8 @@ class RunWriter:
             )
         try:
             self._write_pending()
+            self._flush_file()
+            self._mark_valid()
         finally:
             try:
                 entry = self._file[layout.ENTRY]
@@ -270,12 +294,16 @@ class RunWriter:
                 entry["error"][()] = layout.fit_utf8(error or "", layout.ERROR_BYTES)
                 self._file.flush()
                 self.status = layout.RunStatus(status)
+                self._mark_valid()  # rows whose first flush failed but this one wrote
             finally:
                 self._closed = True
                 try:
                     self._file.close()
-                except BaseException:
+                except (OSError, RuntimeError) as exc:
                     keep_alive(self._file)  # freeing it later can crash the HDF5 library
+                    raise StorageError(f"close failed: {one_line(exc)}", path=self.path) from exc
+                except BaseException:
+                    keep_alive(self._file)
                     raise
 
     def __enter__(self) -> RunWriter:
@@ -342,8 +370,8 @@ class RunWriter:
             for j, key in enumerate(("first_sample", "counter", "host_time", "dropped")):
                 dtype = np.float64 if key == "host_time" else np.int64
                 _write_at(self._blocks[key], self._n_blocks, meta[:, j].astype(dtype))
-        except OSError as exc:
-            raise StorageError(f"write failed: {exc}", path=self.path) from exc
+        except (OSError, RuntimeError) as exc:
+            raise StorageError(f"write failed: {one_line(exc)}", path=self.path) from exc
         self._pending, self._pending_meta, self._pending_samples = [], [], 0
         self._n_samples += n_new
         self._n_blocks += len(metas)
@@ -511,6 +539,9 @@ def _create_daq(f: h5py.File, daq: layout.DaqLayout, start_time: str) -> None:
     _growing(blocks, "counter", np.int64, layout.BLOCK_CHUNK, "counts")
     _growing(blocks, "host_time", np.float64, layout.BLOCK_CHUNK, "s")
     _growing(blocks, "dropped", np.int64, layout.BLOCK_CHUNK)
+    valid = f.create_dataset(layout.ROWS_VALID, data=np.zeros(2, dtype=np.int64))
+    valid.attrs["description"] = ("DAQ samples and block-table rows known to be on disk (written, "
+                                  "then flushed); a reader reads no further")
 
 
 def _create_camera(f: h5py.File, camera: layout.CameraLayout, start_time: str) -> None:
