@@ -55,10 +55,13 @@ class ProbeConfig:
     mount_travel_m: float = 0.0
     """Travel of a motorised mount driven through the probe's ``MV`` command (centred on where it
     starts); 0: the mount is manual and :meth:`SerialProbe.move_mount` is refused."""
+    mount_speed_m_s: float = 1e-3
+    """Speed of the motorised mount (its move takes ``|distance| / speed``)."""
 
     def __post_init__(self) -> None:
         owner = f"probe {self.name!r}"
         check_number(owner, "mount_travel_m", self.mount_travel_m, unit="m", ge=0.0, le=0.2)
+        check_number(owner, "mount_speed_m_s", self.mount_speed_m_s, unit="m/s", gt=0.0, le=1.0)
         if not isinstance(self.url, str) or not self.url:
             raise SettingError(owner, "url", self.url, "must be a pyserial URL or port name")
         for key in ("timeout_s", "stream_silence_s"):
@@ -141,6 +144,11 @@ class SerialProbe(DisplacementProbe):
     def mount_travel_m(self) -> float:
         """Travel of the motorised mount (``ProbeConfig.mount_travel_m``; 0: manual)."""
         return self._config.mount_travel_m
+
+    @property
+    def mount_speed_m_s(self) -> float:
+        """Speed of the motorised mount (``ProbeConfig.mount_speed_m_s``)."""
+        return self._config.mount_speed_m_s
 
     # hooks --------------------------------------------------------------------------------------
     def _do_zero(self) -> None:

@@ -40,13 +40,13 @@ def settle_s() -> Any:
 
 
 def recentre_probes() -> Any:
-    return param(0.0, "-", "1: re-centre the probes' mounts during the slides, keeping delta within "
-                 "their 74 um (docs/experiments.md); 0 (default until the analysis reads a slide "
-                 "with stops as one pass): never")
+    return param(1.0, "-", "1: re-centre the probes' mounts while the stage slides (the drive goes "
+                 "on), keeping delta within their 74 um (docs/experiments.md); 0: never")
 
 
-def recentre_every_m() -> Any:
-    return param(30e-6, "m", "stage travel between re-centrings of the probes")
+def recentre_headroom_m() -> Any:
+    return param(40e-6, "m", "range kept ahead of a probe's reading in the slide's direction: "
+                 "with less left its mount moves it back (choice: the 40 um initial-stage slip)")
 
 
 def travel_m() -> Any:
@@ -85,7 +85,7 @@ class Loading:
     preload_hold_s: float
     settle_s: float
     recentre_probes: float
-    recentre_every_m: float
+    recentre_headroom_m: float
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ class TlreParams(Loading):
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
     recentre_probes: float = recentre_probes()
-    recentre_every_m: float = recentre_every_m()
+    recentre_headroom_m: float = recentre_headroom_m()
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class ForceSweepParams(Loading):
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
     recentre_probes: float = recentre_probes()
-    recentre_every_m: float = recentre_every_m()
+    recentre_headroom_m: float = recentre_headroom_m()
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ class VelocityStepsParams(Loading):
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
     recentre_probes: float = recentre_probes()
-    recentre_every_m: float = recentre_every_m()
+    recentre_headroom_m: float = recentre_headroom_m()
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,7 @@ class SlideHoldSlideParams(Loading):
     preload_hold_s: float = preload_hold_s()
     settle_s: float = settle_s()
     recentre_probes: float = recentre_probes()
-    recentre_every_m: float = recentre_every_m()
+    recentre_headroom_m: float = recentre_headroom_m()
 
 
 def _load(p: Loading, fn_N: float) -> list[Step]:
@@ -181,28 +181,28 @@ def build_tlre(p: TlreParams) -> list[Step]:
     steps: list[Step] = []
     for _ in range(p.repetitions):
         steps += _tangential_run(p, p.fn_N)
-    return recentred(steps, p.recentre_probes, p.recentre_every_m)
+    return recentred(steps, p.recentre_probes, p.recentre_headroom_m)
 
 
 def build_force_sweep(p: ForceSweepParams) -> list[Step]:
     steps: list[Step] = []
     for fn in p.forces_N:
         steps += _tangential_run(p, fn)
-    return recentred(steps, p.recentre_probes, p.recentre_every_m)
+    return recentred(steps, p.recentre_probes, p.recentre_headroom_m)
 
 
 def build_velocity_steps(p: VelocityStepsParams) -> list[Step]:
     steps: list[Step] = [*_load(p, p.fn_N)]
     for v in p.velocities_m_s:
         steps.append(MoveTangential(p.distance_m, v))
-    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_every_m)
+    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_headroom_m)
 
 
 def build_slide_hold_slide(p: SlideHoldSlideParams) -> list[Step]:
     steps: list[Step] = [*_load(p, p.fn_N), MoveTangential(p.slide_m, p.velocity_m_s)]
     for hold in p.holds_s:
         steps += [Hold(hold), MoveTangential(p.slide_m, p.velocity_m_s)]
-    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_every_m)
+    return recentred([*steps, ReleaseNormal(), ReturnTangential()], p.recentre_probes, p.recentre_headroom_m)
 
 
 PROTOCOLS: dict[str, Protocol[Any]] = {

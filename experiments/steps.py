@@ -67,9 +67,16 @@ def within_limits(step: Step, check: Callable[[], T]) -> T:
 
 
 def drive_to(
-    ctx: RunContext, stage: LoadingStage, target_m: float, velocity_m_s: float, estimate_s: float
+    ctx: RunContext,
+    stage: LoadingStage,
+    target_m: float,
+    velocity_m_s: float,
+    estimate_s: float,
+    while_moving: Callable[[], None] | None = None,
 ) -> None:
-    """Move ``stage`` to ``target_m`` and wait for it, honouring pause/abort and device faults.
+    """Move ``stage`` to ``target_m`` and wait for it, honouring pause/abort and device faults;
+    ``while_moving`` is called at every poll of the move while not paused (the probes' re-centring,
+    :mod:`experiments.recentre`), never altering it.
 
     A pause stops the stage where it is; resuming re-issues the move to the same target. The move
     times out (ProcedureError) if it takes more than twice its estimate plus 30 s of device time,
@@ -94,6 +101,8 @@ def drive_to(
             pause_started = None
             ctx.acq.mark("resume", ctx.current_step)
             stage.move_absolute(target_m, velocity_m_s)
+        if while_moving is not None:
+            while_moving()
         status = stage.status()
         if status.fault:
             raise StageAlarm(stage.name, status.alarm_code)

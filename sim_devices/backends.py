@@ -280,12 +280,10 @@ def _wire(
         psim = ProbeSim(rig, index, faults=faults[key]).start()
         closers.append(psim.stop)
         servers.append(psim)
-        travel = rig.probes[index].spec.mount_travel_m  # the simulated mount is motorised
-        if settings.probes is not None:
-            pcfg = dataclasses.replace(settings.probes[index], url=psim.path,
-                                       mount_travel_m=travel)
-        else:
-            pcfg = ProbeConfig(name=key, url=psim.path, mount_travel_m=travel)
+        spec = rig.probes[index].spec  # the simulated mount is motorised
+        base = settings.probes[index] if settings.probes is not None else ProbeConfig(name=key)
+        pcfg = dataclasses.replace(base, url=psim.path, mount_travel_m=spec.mount_travel_m,
+                                   mount_speed_m_s=spec.mount_speed_m_s)
         probe = SerialProbe(pcfg)
         closers.append(probe.close)
         probes.append(probe)

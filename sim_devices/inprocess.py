@@ -264,6 +264,10 @@ class InProcessProbe(DisplacementProbe):
     def mount_travel_m(self) -> float:
         return self.head.spec.mount_travel_m
 
+    @property
+    def mount_speed_m_s(self) -> float:
+        return self.head.spec.mount_speed_m_s
+
     def _do_zero(self) -> None:
         self._check_alive("ZR")
         self.head.zero_at(float(self.rig.probe_ideal_m(self.index)[0]))

@@ -9,8 +9,8 @@ a time, in order:
 - ``MS`` -> ``MS,+0012.3450`` (quantised to 0.019 um) or ``MS,+OVER`` / ``MS,-OVER`` beyond +-37 um
   of the zero; ``ER,MS,03`` while streaming;
 - ``ZR`` -> ``ZR`` (the current gap becomes the zero; shared with the probe's analog output);
-- ``MV,<um>`` -> ``MV`` (the motorised mount moves by that many micrometres towards the target, the
-  readings drop by it; ``ER,MV,02`` beyond the mount's travel or for a manual mount);
+- ``MV,<um>`` -> ``MV`` (the motorised mount moves by that many micrometres towards the target at
+  its speed, the readings drop by it; ``ER,MV,02`` beyond the mount's travel or for a manual mount);
 - ``ST,<rate_hz>`` -> ``ST``, then ``D,<seq>,<value>`` lines for samples at ``t0 + seq / rate`` of
   the rig's clock (rate 1 .. the rig's sample rate, else ``ER,ST,02``); ``SP`` -> ``SP``;
 - anything else -> ``ER,<cmd>,01``; a malformed argument -> ``ER,<cmd>,02``.

@@ -19,9 +19,11 @@ rail, +-10 V (full-scale counts on the DAQ), which no in-range reading can produ
 Mount: each probe sits in a holder on a motorised micrometre drive along its axis (a choice: the
 paper does not describe the holders). A fibre-optic probe's range is fixed about its stand-off, so
 re-zeroing the electronics cannot bring a target that left the range back; moving the probe can.
-Moving the mount by ``m`` towards the target shortens the gap by ``m``: every reading from that
-instant on is ``m`` lower. The moves are kept with their rig times (:meth:`ProbeHead.move_mount`), so
-a device reading the rig's history late still sees each sample with the mount where it was then.
+Moving the mount by ``m`` towards the target shortens the gap by ``m``: the mount travels at its
+speed (``ProbeSpec.mount_speed_m_s``, 1 mm/s, a choice), so the readings fall linearly by ``m`` over
+``|m| / speed`` from the instant of the command (60 ms for 60 um) and are ``m`` lower from then on.
+The moves are kept with their rig times (:meth:`ProbeHead.move_mount`), so a device reading the rig's
+history late still sees each sample with the mount where it was then.
 """
 
 from __future__ import annotations
@@ -138,25 +140,33 @@ class ProbeSpec:
     mount_travel_m: float = 25e-3
     """Travel of the probe's motorised mount, centred on where it starts (a 25 mm micrometre
     drive, a choice); 0 = a manual mount the rig cannot move."""
+    mount_speed_m_s: float = 1e-3
+    """Speed of the motorised mount (a DC-servo micrometre actuator at 1 mm/s, a choice): a move of
+    ``m`` takes ``|m| / mount_speed_m_s``."""
 
     def __post_init__(self) -> None:
         if not (self.range_m > 0 and self.resolution_m > 0 and self.noise_rms_m >= 0):
             raise ValueError("probe range and resolution must be positive, noise >= 0")
         if not (self.mount_travel_m >= 0 and math.isfinite(self.mount_travel_m)):
             raise ValueError("probe mount travel must be finite and >= 0")
+        if not (self.mount_speed_m_s > 0 and math.isfinite(self.mount_speed_m_s)):
+            raise ValueError("probe mount speed must be finite and > 0")
 
 
 class ProbeHead:
-    """A probe's physical state: where its zero is and where its mount has been moved (with the rig
-    time of each move). Shared by its serial and analog outputs."""
+    """A probe's physical state: where its zero is and where its mount has been moved (each move a
+    ramp in rig time at the mount's speed). Shared by its serial and analog outputs."""
 
     def __init__(self, spec: ProbeSpec | None = None, seed: int = 0) -> None:
         self.spec = spec or ProbeSpec()
         self._zero_m = 0.0
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()
-        self._move_t_s: list[float] = [-math.inf]
-        self._mount_m: list[float] = [0.0]
+        self._knot_t_s: list[float] = []
+        """Rig times at which the mount starts or ends a move (the mount is linear in between)."""
+        self._knot_m: list[float] = []
+        """Where the mount is at each knot [m]."""
+        self._mount_m = 0.0
 
     @property
     def half_range_m(self) -> float:
@@ -168,45 +178,50 @@ class ProbeHead:
 
     @property
     def mount_m(self) -> float:
-        """Where the mount is now, from where it started [m] (positive: towards the target)."""
+        """Where the mount is going, from where it started [m] (positive: towards the target): the
+        end of the last move commanded."""
         with self._lock:
-            return self._mount_m[-1]
+            return self._mount_m
 
-    def move_mount(self, distance_m: float, after_t_s: float) -> None:
+    def move_mount(self, distance_m: float, after_t_s: float) -> float:
         """Move the mount by ``distance_m`` (positive: towards the target, the readings drop by it),
-        in place for every sample later than rig time ``after_t_s``. A move beyond the mount's
-        travel raises ValueError and nothing moves (never clipped)."""
+        starting at rig time ``after_t_s`` (or where the previous move ends, if later) at the mount's
+        speed; returns the rig time the move ends. A move beyond the mount's travel raises ValueError
+        and nothing moves (never clipped)."""
         d = float(distance_m)
         t = float(after_t_s)
         if not (math.isfinite(d) and math.isfinite(t)):
             raise ValueError(f"mount move must be finite, got {distance_m!r} at {after_t_s!r}")
         half = 0.5 * self.spec.mount_travel_m
         with self._lock:
-            target = self._mount_m[-1] + d
+            target = self._mount_m + d
             if abs(target) > half:
                 raise ValueError(f"mount move to {target * 1e6:+.1f} um is beyond its travel "
                                  f"of +-{half * 1e6:.0f} um")
-            if t < self._move_t_s[-1]:
-                raise ValueError("mount moves must come in time order")
-            self._move_t_s.append(t)
-            self._mount_m.append(target)
+            if d == 0.0:
+                return t
+            start = max(t, self._knot_t_s[-1]) if self._knot_t_s else t
+            end = start + abs(d) / self.spec.mount_speed_m_s
+            self._knot_t_s += [start, end]
+            self._knot_m += [self._mount_m, target]
+            self._mount_m = target
+            return end
 
     def _mount_at(self, t_s: FloatArray | None, shape: tuple[int, ...]) -> FloatArray:
         with self._lock:
-            if t_s is None:
-                return np.full(shape, self._mount_m[-1])
-            times = np.asarray(self._move_t_s)
-            mounts = np.asarray(self._mount_m)
-        idx = np.searchsorted(times, np.asarray(t_s, dtype=np.float64), side="left") - 1
-        return mounts[np.maximum(idx, 0)]
+            if t_s is None or not self._knot_t_s:
+                return np.full(shape, self._mount_m)
+            times = np.asarray(self._knot_t_s)
+            mounts = np.asarray(self._knot_m)
+        return np.interp(np.asarray(t_s, dtype=np.float64), times, mounts)
 
     def zero_at(self, ideal_m: float) -> None:
         """``ZR``: the current gap becomes the zero."""
         self._zero_m = float(ideal_m) + self.spec.mount_offset_m - self.mount_m
 
     def readings_m(self, ideal_m: FloatArray, t_s: FloatArray | None = None) -> FloatArray:
-        """Quantised readings relative to the zero at rig times ``t_s`` (None: now, the mount where
-        it is); +inf / -inf where over range."""
+        """Quantised readings relative to the zero at rig times ``t_s`` (None: now, the mount at the
+        end of its last move); +inf / -inf where over range."""
         ideal = np.asarray(ideal_m, dtype=np.float64)
         mount = self._mount_at(t_s, ideal.shape)
         with self._lock:

@@ -434,8 +434,9 @@ class VirtualRig(SimService):
 
     def move_probe_mount(self, index: int, distance_m: float) -> float:
         """Move probe ``index``'s mount by ``distance_m`` (positive: towards its target, the readings
-        drop by it) at the rig's current time, after catching up with the clock (as a stage command
-        is applied); returns that rig time. ValueError beyond the mount's travel (nothing moves)."""
+        drop by it) from the rig's current time, after catching up with the clock (as a stage command
+        is applied), at the mount's speed (:class:`~sim_devices.sensors.ProbeSpec`); returns that
+        rig time. ValueError beyond the mount's travel (nothing moves)."""
         with self._cond:
             self._sync_locked()
             t = self.t_s

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from typing import NamedTuple
 
@@ -96,13 +97,21 @@ class DisplacementProbe(Device):
         return 0.0
 
     @property
+    def mount_speed_m_s(self) -> float:
+        """Speed of the motorised mount [m/s]: a move of ``m`` takes ``|m| / mount_speed_m_s`` from
+        its command, during which the readings change by the part of the move made. ``inf`` (the
+        default) for a manual mount."""
+        return math.inf
+
+    @property
     def mount_m(self) -> float:
         """Where the mount is, from where it started [m] (the sum of the moves made)."""
         return self._mount_m
 
     def move_mount(self, distance_m: float) -> None:
-        """Move the probe towards its target by ``distance_m`` (negative: away): every reading from
-        then on is ``distance_m`` lower. A move beyond the mount's travel raises LimitError and
+        """Move the probe towards its target by ``distance_m`` (negative: away), at
+        :attr:`mount_speed_m_s` from the command on: every reading after the move is ``distance_m``
+        lower. A move beyond the mount's travel raises LimitError and
         nothing moves; a manual mount raises NotSupportedError."""
         self._check_idle("move_mount")
         d = check_argument(self.name, "distance_m", distance_m, unit="m")

@@ -1,16 +1,24 @@
 """Delta stitched across the probes' re-centrings: continuous where the mounts moved.
 
-A protocol that re-centres the probes (:mod:`experiments.recentre`) records every mount move as a
-``probe_recentre`` event (:mod:`rigctl.storage.probe_events`): the move, and a time just after it
-(the specimens at rest around it). Each probe column then drops by the move at one sample. The
-stitched column adds every earlier move back, so delta = d1 - d2 is continuous across the
-re-centring, as the specimen's displacement is.
+A protocol that re-centres the probes (:mod:`experiments.recentre`) moves a probe's mount while the
+stage slides and records every move as a ``probe_recentre`` event (:mod:`rigctl.storage.probe_events`):
+the move and the window of device time during which the mount may have been moving. The probe's
+column drops by the move across that window. The stitched column adds every earlier move back, so
+delta = d1 - d2 is continuous across the re-centring, as the specimen's displacement is.
 
-The move is applied at the largest jump of the column within ``SEARCH_S`` before the event (the
-event is written just after the move, a paced rig up to 0.25 s later); where the event states no
-move (an operator's re-centring of unknown size, ``nan``), the jump measured there, the median of
-``REST_SAMPLES`` after it minus the median before, is used instead. Over-range samples (the rail)
-are never used to measure a jump.
+The recorded move is exact for a motorised mount: it is added to every sample after the window,
+whatever the specimen did meanwhile (mid-slide, a stick phase or even a slip goes on during the
+move; a jump measured there would take the specimen's motion for the mount's). Inside the window the
+mount's position is not known sample by sample: those samples are bridged by a straight line from
+the last sample before the window to the first after it (so the column has neither a jump nor a
+spurious extreme) and marked: :func:`rigctl.storage.probe_events.moving_masks` gives them per
+column, and :func:`rigctl.records.probe_range.probe_range` leaves delta out there.
+
+Where an event states no move (``nan``: a re-centring of unknown size), the move is measured: the
+median of ``REST_SAMPLES`` after the window minus the median before it (exact at rest only). An
+event without a window (run files recorded before windows were stated, when the stage stopped for
+each re-centring) is placed at the largest jump of the column within ``SEARCH_S`` before it.
+Over-range samples (the rail) are never used to measure a jump.
 """
 
 from __future__ import annotations
@@ -21,24 +29,25 @@ from collections.abc import Iterable
 import numpy as np
 
 from rigctl.data import FloatArray, MeasuredRun
-from rigctl.storage.probe_events import RECENTRE_EVENT, parse_recentre
+from rigctl.storage.probe_events import RECENTRE_EVENT, MountMove, parse_recentre
 from rigctl.storage.reader import RunEvent
 
 SEARCH_S = 0.45
-"""How far before its event a move is looked for (the re-centring hold is 0.5 s either side)."""
+"""How far before an event without a window its move is looked for (the old re-centring hold)."""
 REST_SAMPLES = 40
-"""Samples either side of a jump whose medians measure it (39 ms at 1024 Hz)."""
+"""Samples either side of a move whose medians measure it when its size is not stated."""
+PROBE_COLUMNS = ("d1_m", "d2_m")
 
 
-def mount_moves(events: Iterable[RunEvent]) -> dict[str, list[tuple[float, float]]]:
-    """(event time, move [m]; NaN if unknown) per probe column, in time order."""
-    out: dict[str, list[tuple[float, float]]] = {}
+def mount_moves(events: Iterable[RunEvent]) -> dict[str, list[tuple[float, MountMove]]]:
+    """(event time, the move) per probe column, in time order."""
+    out: dict[str, list[tuple[float, MountMove]]] = {}
     for ev in sorted(events, key=lambda e: e.t_s):
         if ev.name != RECENTRE_EVENT:
             continue
-        parsed = parse_recentre(ev.message)
-        if parsed is not None:
-            out.setdefault(parsed[0], []).append((ev.t_s, parsed[1]))
+        move = parse_recentre(ev.message)
+        if move is not None and move.column in PROBE_COLUMNS:
+            out.setdefault(move.column, []).append((ev.t_s, move))
     return out
 
 
@@ -52,20 +61,40 @@ def _jump_index(x: FloatArray, t: FloatArray, t_event_s: float) -> int | None:
     return int(near[int(np.argmax(steps))] + 1)
 
 
-def stitched(x: FloatArray, t: FloatArray, moves: list[tuple[float, float]]) -> FloatArray:
+def _measured(x: FloatArray, a: int, b: int) -> float:
+    """The drop of ``x`` from the samples before index ``a`` to those from ``b`` on (NaN if none in
+    range)."""
+    before, after = x[max(0, a - REST_SAMPLES):a], x[b:b + REST_SAMPLES]
+    before, after = before[np.isfinite(before)], after[np.isfinite(after)]
+    if before.size == 0 or after.size == 0:
+        return math.nan
+    return float(np.median(before) - np.median(after))
+
+
+def _span(t: FloatArray, t_event_s: float, move: MountMove, x: FloatArray) -> tuple[int, int] | None:
+    """[a, b): the samples during which the mount moved (a == b: a step between two samples)."""
+    if move.has_window:
+        a = int(np.searchsorted(t, move.t_start_s, side="right"))
+        b = int(np.searchsorted(t, move.t_start_s + move.duration_s, side="right"))
+        return a, b
+    k = _jump_index(x, t, t_event_s)
+    return None if k is None else (k, k)
+
+
+def stitched(x: FloatArray, t: FloatArray, moves: list[tuple[float, MountMove]]) -> FloatArray:
     """Probe column ``x`` with every earlier mount move added back (see the module docstring)."""
     out = np.array(x, dtype=np.float64, copy=True)
-    for t_ev, moved in moves:
-        k = _jump_index(x, t, t_ev)
-        if k is None:
+    for t_ev, move in moves:
+        span = _span(t, t_ev, move, x)
+        if span is None:
             continue
+        a, b = span
+        moved = move.moved_m if math.isfinite(move.moved_m) else _measured(x, a, b)
         if not math.isfinite(moved):
-            a, b = x[max(0, k - REST_SAMPLES):k], x[k:k + REST_SAMPLES]
-            a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-            if a.size == 0 or b.size == 0:
-                continue
-            moved = float(np.median(a) - np.median(b))
-        out[k:] += moved
+            continue
+        out[b:] += moved
+        if 0 < a < b < out.shape[0]:  # bridged (those samples are marked: moving_masks)
+            out[a:b] = np.interp(t[a:b], (t[a - 1], t[b]), (out[a - 1], out[b]))
     return out
 
 
@@ -76,6 +105,6 @@ def stitch_run(run: MeasuredRun, events: Iterable[RunEvent]) -> MeasuredRun:
     if not moves:
         return run
     cols = {c: stitched(getattr(run, c), run.t_s, moves[c]) if c in moves else getattr(run, c)
-            for c in ("d1_m", "d2_m")}
+            for c in PROBE_COLUMNS}
     return MeasuredRun(run.t_s, run.x_stage_m, run.fn_N, run.ft_N, cols["d1_m"], cols["d2_m"],
                        dict(run.extra), dict(run.metadata), run.source)

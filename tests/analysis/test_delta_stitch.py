@@ -10,7 +10,7 @@ import pytest
 
 from rigctl.analysis.delta_stitch import stitch_run
 from rigctl.data import MeasuredRun
-from rigctl.storage.probe_events import RECENTRE_EVENT, recentre_message
+from rigctl.storage.probe_events import RECENTRE_EVENT, moving_masks, recentre_message
 from rigctl.storage.reader import RunEvent
 
 RATE = 1024.0
@@ -41,3 +41,20 @@ def test_delta_is_continuous_across_a_recentring(stated: float) -> None:
 def test_no_recentring_leaves_the_run_alone() -> None:
     run, _ = _run()
     assert stitch_run(run, [RunEvent(1.0, "probe_over_range", "d1_m: probe over range")]) is run
+
+
+def test_a_move_mid_slide_uses_the_recorded_move_not_the_jump() -> None:
+    """The boss slips by 20 um while the mount moves 30 um over 60 ms: the stated move is added
+    after the window, the window's samples are marked, and nothing is measured from the jump."""
+    t = np.arange(int(10 * RATE)) / RATE
+    true_d1 = 1e-6 * t + np.where(t > 5.02, 20e-6, 0.0)  # slides, slips 20 um at 5.02 s
+    mount = 30e-6 * np.clip((t - 5.0) / 0.03, 0.0, 1.0)  # the mount moves from 5.0 s to 5.03 s
+    run = MeasuredRun(t, 1.3e-6 * t, np.full_like(t, 300.0), np.zeros_like(t), true_d1 - mount,
+                      np.zeros_like(t), source="synthetic.h5")
+    event = RunEvent(5.2, RECENTRE_EVENT,
+                     recentre_message("d1_m", 30e-6, 5e-6, -5e-6, t_start_s=4.99, duration_s=0.06))
+    out = stitch_run(run, [event])
+    window = moving_masks(t, [event])["d1_m"]
+    assert window.sum() == pytest.approx(0.06 * RATE, abs=1)
+    np.testing.assert_allclose(out.d1_m[~window], true_d1[~window], atol=1e-12)
+    assert np.all(np.abs(np.diff(out.d1_m[window])) < 21e-6 / window.sum() + 1e-9)  # bridged

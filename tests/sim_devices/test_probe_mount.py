@@ -32,12 +32,22 @@ def test_a_mount_move_brings_an_over_range_target_back() -> None:
 
 
 def test_samples_before_the_move_keep_the_old_mount_when_read_late() -> None:
-    head = ProbeHead(ProbeSpec(noise_rms_m=0.0))
-    head.move_mount(20e-6, after_t_s=1.0)
-    t = np.array([0.5, 1.0, 1.0 + 1 / 1024, 2.0])
-    got = head.readings_m(np.full(4, 30e-6), t)
-    np.testing.assert_allclose(got, [30e-6, 30e-6, 10e-6, 10e-6], atol=0.02e-6)
-    np.testing.assert_allclose(head.analog_V(np.full(4, 30e-6), 7.4e-6, t) * 7.4e-6, got)
+    head = ProbeHead(ProbeSpec(noise_rms_m=0.0, mount_speed_m_s=1e-3))
+    assert head.move_mount(20e-6, after_t_s=1.0) == pytest.approx(1.02)  # 20 um at 1 mm/s
+    t = np.array([0.5, 1.0, 1.01, 1.02, 2.0])
+    got = head.readings_m(np.full(5, 30e-6), t)
+    np.testing.assert_allclose(got, [30e-6, 30e-6, 20e-6, 10e-6, 10e-6], atol=0.02e-6)
+    np.testing.assert_allclose(head.analog_V(np.full(5, 30e-6), 7.4e-6, t) * 7.4e-6, got)
+
+
+def test_the_mount_moves_at_its_speed_and_a_move_made_while_moving_follows_it() -> None:
+    head = ProbeHead(ProbeSpec(noise_rms_m=0.0, mount_speed_m_s=0.5e-3))
+    assert head.move_mount(10e-6, after_t_s=1.0) == pytest.approx(1.02)
+    assert head.move_mount(-5e-6, after_t_s=1.01) == pytest.approx(1.03)  # queued after the first
+    t = np.array([1.0, 1.005, 1.02, 1.025, 1.03, 5.0])
+    got = head.readings_m(np.zeros(6), t)
+    np.testing.assert_allclose(got, [0.0, -2.5e-6, -10e-6, -7.5e-6, -5e-6, -5e-6], atol=0.02e-6)
+    assert head.mount_m == pytest.approx(5e-6)
 
 
 def test_a_move_beyond_the_travel_is_refused_and_nothing_moves() -> None:
@@ -79,6 +89,7 @@ def test_both_backends_move_the_mount_and_the_daq_sees_it(backend: str) -> None:
         assert isinstance(sim, SimRig)
         d1 = sim.devices.d1
         assert d1.mount_travel_m > 0
+        assert d1.mount_speed_m_s == sim.rig.probes[0].spec.mount_speed_m_s
         rig = sim.rig
         displace(rig, 30e-6)
         before = d1.read_m()
