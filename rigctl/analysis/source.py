@@ -22,6 +22,7 @@ import numpy as np
 from rigctl.analysis.delta_stitch import stitch_run
 from rigctl.data import DataError, FloatArray, MeasuredRun
 from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
+from rigctl.io.plausibility import check_plausible
 from rigctl.status import RunStatus
 from rigctl.storage import layout
 from rigctl.storage.reader import RunEvent, RunReader
@@ -126,32 +127,28 @@ def _frame_info(f: h5py.File, notes: list[str]) -> FrameInfo | None:
     return FrameInfo(n, int(frames.shape[1]), int(frames.shape[2]), t, rate)
 
 
-def _check_not_truncated(path: Path) -> None:
-    """DataError if the file is shorter than HDF5 says it is (an incomplete copy, a full disk).
+MIN_SAMPLES = 64
+"""Fewer samples than this are nothing to analyse."""
 
-    Opened for SWMR (as :class:`RunReader` does) HDF5 does not compare the file's size with the end
-    of file its superblock records, and the missing chunks read as zeros; a plain open does.
-    """
-    try:
-        with h5py.File(path, "r"):
-            pass
-    except OSError as exc:
-        if "truncated" in str(exc):
-            raise DataError(f"the run file is truncated ({exc}); it was cut short by an "
-                            "incomplete copy or a full disk", path=path) from exc
-        # otherwise: a file still open for writing (SWMR) or whose writer died: read it via SWMR
+
+def _usable(run: MeasuredRun, path: Path) -> list[str]:
+    """DataError for a run too short to analyse or with values no rig measures (the readers' one
+    plausibility check, :func:`rigctl.io.plausibility.check_plausible`); its warnings otherwise."""
+    if run.n_samples < MIN_SAMPLES:
+        raise DataError(f"the run has only {run.n_samples} sample(s): nothing to analyse "
+                        f"(at least {MIN_SAMPLES})", path=path)
+    return check_plausible(run, path.name)
 
 
 def _open_h5(path: Path) -> RunSource:
+    """A run file; a damaged one is read as far as it holds data (RunReader says what is left
+    out), or refused in one line."""
     notes: list[str] = []
-    _check_not_truncated(path)
     try:
         with RunReader(path) as reader:
             status = reader.status
-            n = reader.n_samples
-            if n < 64:
-                raise DataError(f"the run has only {n} samples: nothing to analyse", path=path)
             run = reader.to_measured(validate=True)
+            notes += _usable(run, path)
             try:
                 parameters = reader.parameters
             except (KeyError, json.JSONDecodeError):
@@ -187,7 +184,8 @@ def open_source(path: str | Path) -> RunSource:
 
         run = read_csv(p)
         run.validate()
-        notes = ["a CSV run has no camera frames: " + ", ".join(IMAGE_ANALYSES) + " not done"]
+        notes = _usable(run, p)
+        notes.append("a CSV run has no camera frames: " + ", ".join(IMAGE_ANALYSES) + " not done")
         return RunSource(p, run, "csv", run.metadata.get("protocol", ""), {}, "", [], None, "",
                          notes)
     raise DataError(f"unknown file type {p.suffix!r}: expected .h5 or .csv", path=p)

@@ -67,12 +67,13 @@ def run_export(args: argparse.Namespace) -> int:
 def run_import(args: argparse.Namespace) -> int:
     from rigctl.io.csv_format import read_csv
     from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
+    from rigctl.io.plausibility import checked
     from rigctl.storage import write_measured_run
 
     _require_suffix(args.csv, CSV_SUFFIXES, "FILE")
     _require_suffix(args.out, RUN_FILE_SUFFIXES, "--out")
     check_output_file(args.out, "--out", force=args.force)
-    run = read_csv(args.csv)
+    run = checked(read_csv(args.csv), str(args.csv))
     status, error = _imported_status(run.metadata)
     write_measured_run(
         args.out,
@@ -159,10 +160,12 @@ def _status_text(status: str, error: str) -> str:
 
 def _csv_summary(path: Path) -> dict[str, Any]:
     from rigctl.io.csv_format import read_csv
+    from rigctl.io.plausibility import checked
     from rigctl.storage import unit_of
+    from rigctl.storage.text import printable
 
-    run = read_csv(path)
-    meta = run.metadata
+    run = checked(read_csv(path), str(path))
+    meta = {printable(k): printable(v) for k, v in run.metadata.items()}
     return {
         "path": str(path),
         "protocol": meta.get("protocol", "csv"),
@@ -176,7 +179,7 @@ def _csv_summary(path: Path) -> dict[str, Any]:
         "n_samples": run.n_samples,
         "duration_s": run.duration_s,
         "sample_rate_hz": run.sample_rate_hz,
-        "channels": {name: unit_of(name) for name in run.columns() if name != "t_s"},
+        "channels": {printable(name): unit_of(name) for name in run.columns() if name != "t_s"},
         "dropped_samples": 0,
         "n_events": 0,
         "n_frames": 0,

@@ -27,6 +27,7 @@ import numpy as np
 
 from rigctl.data import REQUIRED_COLUMNS, DataError, FloatArray, MeasuredRun
 from rigctl.io.atomic import atomic_text_writer
+from rigctl.storage.text import printable
 
 _ROWS_PER_WRITE = 16384
 _OTHER_DELIMITERS = {";": "';' (semicolon)", "\t": "a tab", "|": "'|' (pipe)"}
@@ -193,13 +194,13 @@ def _split_header(src: Path, line: str, line_no: int) -> list[str]:
     seen: set[str] = set()
     for name in names:
         if name in seen:
-            raise DataError("duplicate column name", path=src, line=line_no, column=name)
+            raise DataError("duplicate column name", path=src, line=line_no, column=printable(name))
         seen.add(name)
     missing = [name for name in REQUIRED_COLUMNS if name not in seen]
     if missing:
         listed = ", ".join(f"'{m}'" for m in missing)
         raise DataError(
-            f"missing required column(s) {listed}; the header has {', '.join(names)}",
+            f"missing required column(s) {listed}; the header has {printable(', '.join(names))}",
             path=src,
             line=line_no,
             column=missing[0],
@@ -265,11 +266,12 @@ def _locate_bad_value(src: Path, names: list[str], rows: _Rows) -> None:
         for name, field in zip(names, fields, strict=True):
             text = field.strip()
             if not text:
-                raise DataError("empty value", path=src, line=line_no, column=name)
+                raise DataError("empty value", path=src, line=line_no, column=printable(name))
             try:
                 float(text)
             except ValueError:
-                raise DataError(f"non-numeric value {text!r}", path=src, line=line_no, column=name) from None
+                raise DataError(f"non-numeric value {text!r}", path=src, line=line_no,
+                                column=printable(name)) from None
 
 
 def _check_required_values(src: Path, columns: dict[str, FloatArray], rows: _Rows | None) -> None:
@@ -280,7 +282,7 @@ def _check_required_values(src: Path, columns: dict[str, FloatArray], rows: _Row
         if bad.size:
             i = int(bad[0])
             raise DataError(
-                f"{columns[name][i]!r} is not allowed in a required column (NaN or infinite)",
+                f"{float(columns[name][i])!r} is not allowed in a required column (NaN or infinite)",
                 path=src,
                 line=rows.line_number(i) if rows else None,
                 column=name,
@@ -290,7 +292,7 @@ def _check_required_values(src: Path, columns: dict[str, FloatArray], rows: _Row
     if bad.size:
         i = int(bad[0]) + 1
         raise DataError(
-            f"time is not strictly increasing: {t[i]!r} s follows {t[i - 1]!r} s",
+            f"time is not strictly increasing: {float(t[i])!r} s follows {float(t[i - 1])!r} s",
             path=src,
             line=rows.line_number(i) if rows else None,
             column="t_s",

@@ -13,7 +13,6 @@ yes/no. A key that a file states itself must agree with it.
 
 from __future__ import annotations
 
-import logging
 import tomllib
 from collections.abc import Sequence
 from dataclasses import replace
@@ -21,10 +20,8 @@ from pathlib import Path
 
 from rigctl.data import DataError, MeasuredRun
 from rigctl.io.csv_format import read_csv
-from rigctl.io.plausibility import check_plausible
+from rigctl.io.plausibility import checked
 from rigctl.storage.reader import read_run
-
-_log = logging.getLogger(__name__)
 
 CSV_SUFFIXES = (".csv",)
 RUN_FILE_SUFFIXES = (".h5", ".hdf5", ".nxs")
@@ -89,9 +86,7 @@ def rig_metadata(folder: Path) -> dict[str, str]:
 def load_run(path: str | Path) -> MeasuredRun:
     """One run from a ``.csv`` or ``.h5`` file, with the rig description beside it merged in."""
     p = Path(path)
-    run = read_run(p) if p.suffix.lower() in RUN_FILE_SUFFIXES else read_csv(p)
-    for warning in check_plausible(run, str(p)):
-        _log.warning("%s", warning)
+    run = checked(read_run(p) if p.suffix.lower() in RUN_FILE_SUFFIXES else read_csv(p), str(p))
     beside = rig_metadata(p.parent)
     if not beside:
         return run

@@ -9,17 +9,28 @@ loader logs them, the user reads them on stderr, and nothing is silently "correc
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
 from rigctl.data import REQUIRED_COLUMNS, DataError, MeasuredRun
 
+_log = logging.getLogger(__name__)
+
 ABSURD = 1e30
 """No SI force (N), displacement (m) or time (s) of a friction rig comes near this; squares of
 such values overflow float64 in the analyses."""
 RATE_MISMATCH = 2.0
 """Factor by which the measured sample rate may differ from a stated ``sample_rate_hz``."""
+
+
+def checked(run: MeasuredRun, name: str) -> MeasuredRun:
+    """``run`` once :func:`check_plausible` has passed it, its warnings logged: what every reader of
+    measured data (analyse, import, info, the workbench) calls before using the numbers."""
+    for warning in check_plausible(run, name):
+        _log.warning("%s", warning)
+    return run
 
 
 def check_plausible(run: MeasuredRun, name: str) -> list[str]:
