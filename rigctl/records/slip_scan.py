@@ -214,28 +214,16 @@ def _all(mask: np.ndarray, i0: int, i1: int) -> bool:
 @njit(cache=True)
 def _extremes_ahead(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
     """Lowest and highest of x[i+1 .. i+w] for every i, the signal held at its last value past
-    its end (signals.sliding_extreme; NaN propagates as in numpy)."""
+    its end, NaN propagating as in numpy (signals.sliding_extreme)."""
     n = x.shape[0]
     lo = np.empty(n)
     hi = np.empty(n)
-    has_nan = np.isnan(x).any()
     for i in range(n):
         a = b = x[i + 1] if i + 1 < n else x[n - 1]
-        if has_nan:
-            for k in range(2, w + 1):
-                v = x[i + k] if i + k < n else x[n - 1]
-                a = _fmin(a, v)
-                b = _fmax(b, v)
-        elif i + w < n:
-            for k in range(i + 2, i + w + 1):
-                v = x[k]
-                a = min(a, v)
-                b = max(b, v)
-        else:
-            for k in range(2, w + 1):
-                v = x[i + k] if i + k < n else x[n - 1]
-                a = min(a, v)
-                b = max(b, v)
+        for k in range(2, w + 1):
+            v = x[i + k] if i + k < n else x[n - 1]
+            a = _fmin(a, v)
+            b = _fmax(b, v)
         lo[i], hi[i] = a, b
     return lo, hi
 
@@ -254,17 +242,30 @@ def scan_slips(
     Absent inputs are empty arrays: ``delta`` (no delta confirmation), ``delta_valid`` (all
     valid), ``v_drive`` (no stroke-reversal test), ``fn`` (no load-change exception)."""
     n = ft.shape[0]
-    # the drop within the window ahead (the lowest, or highest, of the next w samples), then
-    # the candidates
-    lo_ahead, hi_ahead = _extremes_ahead(ft, w)
+    # candidates: |Ft| beyond the threshold and a drop beyond it within the next w samples (the
+    # signal held at its last value past its end): for Ft > 0, Ft less the lowest of them
     cand_buf = np.empty(n, np.intp)
     n_cand = 0
-    for i in range(n):
-        f = ft[i]
-        drop = f - lo_ahead[i] if f > 0 else hi_ahead[i] - f  # np.sign(f) > 0
-        if drop > thr and abs(f) > thr:
-            cand_buf[n_cand] = i
-            n_cand += 1
+    if np.isnan(ft).any():  # NaN propagates through the window's extreme, as in numpy
+        lo_ahead, hi_ahead = _extremes_ahead(ft, w)
+        for i in range(n):
+            f = ft[i]
+            drop = f - lo_ahead[i] if f > 0 else hi_ahead[i] - f  # np.sign(f) > 0
+            if drop > thr and abs(f) > thr:
+                cand_buf[n_cand] = i
+                n_cand += 1
+    else:
+        # f - min(x) > thr exactly when f - x > thr for some x (subtraction is monotone)
+        for i in range(n):
+            f = ft[i]
+            if not abs(f) > thr:
+                continue
+            for k in range(i + 1, i + w + 1):
+                v = ft[k] if k < n else ft[n - 1]
+                if (f - v if f > 0 else v - f) > thr:
+                    cand_buf[n_cand] = i
+                    n_cand += 1
+                    break
     empty = np.zeros(0, np.intp)
     if n_cand == 0:
         return empty, empty.copy(), np.zeros(0, np.int8)

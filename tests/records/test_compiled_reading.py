@@ -164,6 +164,20 @@ def test_a_real_record_with_probes_over_range_reads_the_same() -> None:
     assert n > 10
 
 
+def test_a_force_record_with_a_gap_is_scanned_the_same() -> None:
+    """NaN samples (a gap) propagate through the window's extreme as in numpy."""
+    run = simulate_campaign(_model("light"), "tlre", seed=2, noise=_light_noise(),
+                            sample_rate_hz=2000.0, fn_N=LIGHT_FN_N, velocity_m_s=LIGHT_V_M_S,
+                            duration_scale=0.2)[0]
+    ft = run.ft_N.copy()
+    ft[ft.shape[0] // 3 : ft.shape[0] // 3 + 40] = np.nan
+    det = DetectionSettings.from_signal(run.ft_N)
+    t = run.t_s - run.t_s[0]
+    old = ref.detect_slips(t, ft, run.delta_m, det)
+    _same_slips(detect_slips(t, ft, run.delta_m, det), old, "gap")
+    assert old.n > 3
+
+
 def test_the_drive_velocity_by_phase_is_the_drives_own_per_sample() -> None:
     """The detector's drive velocity, repeated per phase, is DriveProfile.sliding_velocity_at:
     velocity steps and holds, a reciprocating tribometer's 200 strokes."""
