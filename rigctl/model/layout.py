@@ -56,7 +56,8 @@ S_EV_MIN = 11  # running global slip: lowest sensor force seen so far [N]
 S_XS = 12  # stage position at S_T [m]
 S_FN = 13  # input normal force at S_T [N]
 S_STRIB = 14  # running global slip: Stribeck part of mu the elements can carry (kernel) [-]
-N_FSTATE = 15
+S_EV_VMAX = 15  # running global slip: highest |V| seen so far [m/s]
+N_FSTATE = 16
 
 # --- integer state vector ---------------------------------------------------------------------
 I_STAGE = 0  # 0 initial, 1 stable
@@ -69,7 +70,8 @@ I_NEVENT = 6  # number of events written to the event table
 I_SLIPPED = 7  # a global slip ran since the last output sample (phase flag)
 I_CHATTER = 8  # sample intervals where the event budget ran out (events skipped, see kernel)
 I_FAST = 9  # output samples written by the fast stick recurrence (diagnostic)
-N_ISTATE = 10
+I_TERM_ERR = 10  # 1 when a plug-in term gave a non-finite state (general path, RET_TERM_ERROR)
+N_ISTATE = 11
 
 # --- element weight table (float64, one row per kind, one column per element) ----------------
 W_INITIAL = 0  # threshold share of each element in the initial stage, P_linear(i) m_i [-]
@@ -117,9 +119,11 @@ E_SLIP = 4
 E_STAGE = 5
 E_X_START = 6
 E_FN = 7
-N_ECOLS = 8
+E_V_PEAK = 8  # highest |V| of the slip [m/s]
+N_ECOLS = 9
 
 # --- kernel return codes ----------------------------------------------------------------------
 RET_DONE = 0  # reached the end of the requested span
 RET_SLIP_END = 1  # stopped right after a global slip ended (stop_on_slip_end was set)
 RET_EVENT_TABLE_FULL = 2  # event table full: the caller grows it and calls again
+RET_TERM_ERROR = 3  # a plug-in term made the state non-finite (general path); state left before it

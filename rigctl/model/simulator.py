@@ -18,10 +18,12 @@ from rigctl.model import layout
 from rigctl.model.drive import Drive, check_fn
 from rigctl.model.effects import CoreParams, SlipContext
 from rigctl.model.kernel import advance, state_sample
+from rigctl.model.kernel.general import advance_terms
 from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError
 from rigctl.model.result import SimResult, SlipEvent
 from rigctl.model.spec import CoreSetup, ModelSpec
+from rigctl.model.terms import PluginTermError
 
 STATED_RIG_PARAMS = ("m_kg", "c0_N_s_per_m")
 """Parameters a simulated run states in its metadata (:func:`stated_rig_parameters`): a rig
@@ -81,6 +83,10 @@ class _Integration:
         self.ev = np.full((64, layout.N_ECOLS), np.nan)
         self.events: list[SlipEvent] = []
         self.stage_names = ("initial", "stable")
+        # plug-in terms (general path): their bundle, each element's stick start, their state
+        self.terms = setup.terms.bundle() if setup.terms.active else None
+        self.tstick = np.zeros(n)
+        self.z = setup.terms.z0.copy()
 
     def integrate(
         self,
@@ -113,11 +119,15 @@ class _Integration:
         chunk = max((t_end - self.fs[layout.S_T]) / 100.0, 1e-3) if progress else np.inf
         while True:
             t_stop = min(t_end, self.fs[layout.S_T] + chunk)
-            code = advance(
-                self.cp, self.setup.weights, self.fs, self.ist, self.g, self.mode,
-                knots, t_out, out.table, out.flags, out.elements, self.ev,
-                t_stop, bool(hooks), record_elements,
-            )
+            if self.terms is None:
+                code = advance(
+                    self.cp, self.setup.weights, self.fs, self.ist, self.g, self.mode,
+                    knots, t_out, out.table, out.flags, out.elements, self.ev,
+                    t_stop, bool(hooks), record_elements,
+                )
+            else:
+                code = self._advance_terms(knots, t_out, out, t_stop, bool(hooks),
+                                           record_elements)
             if code == layout.RET_EVENT_TABLE_FULL:
                 self._check_slips(max_slips)
                 grown = np.full((self.ev.shape[0] * 2, layout.N_ECOLS), np.nan)
@@ -138,6 +148,30 @@ class _Integration:
             )
         return out
 
+    def _advance_terms(self, knots: np.ndarray, t_out: np.ndarray, out: Outputs, t_stop: float,
+                       stop_on_slip_end: bool, record_elements: bool) -> int:
+        """The general path (plug-in terms); a term that raises or is not finite ends the run
+        with one :class:`PluginTermError` naming the plug-in and the state."""
+        try:
+            code = int(advance_terms(
+                self.cp, self.setup.weights, self.terms, self.fs, self.ist, self.g, self.mode,
+                self.tstick, self.z, knots, t_out, out.table, out.flags, out.elements, self.ev,
+                t_stop, stop_on_slip_end, record_elements,
+            ))
+            if code != layout.RET_TERM_ERROR:
+                return code
+            why = "made the state non-finite"
+        except Exception as exc:  # whatever a plug-in's compiled code raised
+            why = f"raised {type(exc).__name__}: {exc}"
+        fs = self.fs
+        t, x, v = (float(fs[layout.S_T]), float(fs[layout.S_X]), float(fs[layout.S_V]))
+        j = int(self.ist[layout.I_KNOT])
+        fn = float(knots[layout.K_FN, min(j, knots.shape[1] - 1)])
+        culprit = self.setup.terms.culprit(t, x, v, fn, float(self.cp[layout.P_MUS]), self.z,
+                                           why)
+        raise PluginTermError(
+            f"{culprit} at t = {t:.6g} s, X = {x:.6g} m, V = {v:.6g} m/s, Fn = {fn:.6g} N")
+
     def _check_slips(self, max_slips: int | None) -> None:
         n_ev = int(self.ist[layout.I_NEVENT])
         if max_slips is not None and n_ev > max_slips:
@@ -145,7 +179,9 @@ class _Integration:
                                      f"{self.fs[layout.S_T]:.6g} s ({n_ev} recorded)")
 
     def _run_hooks(self) -> None:
-        row = self.ev[self.ist[layout.I_NEVENT] - 1]
+        i_ev = int(self.ist[layout.I_NEVENT]) - 1
+        row = self.ev[i_ev]
+        stick_from = float(self.ev[i_ev - 1, layout.E_T_END]) if i_ev > 0 else 0.0
         ctx = SlipContext(
             t_s=float(row[layout.E_T_END]),
             n_slips=int(self.ist[layout.I_NSLIP]),
@@ -154,6 +190,10 @@ class _Integration:
             fn_N=float(row[layout.E_FN]),
             peak_N=float(row[layout.E_PEAK]),
             trough_N=float(row[layout.E_TROUGH]),
+            x_start_m=float(row[layout.E_X_START]),
+            x_end_m=float(row[layout.E_X_START] + row[layout.E_SLIP]),
+            peak_velocity_m_s=float(row[layout.E_V_PEAK]),
+            stick_s=float(row[layout.E_T_START]) - stick_from,
         )
         for entry in self.setup.slip_hooks:
             entry.effect.on_slip_end(self.core, entry.values, ctx)

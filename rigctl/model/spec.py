@@ -20,6 +20,7 @@ from rigctl.model.effects import LIBRARY, CoreParams, Effect
 from rigctl.model.effects.stress_evolution import p_linear
 from rigctl.model.friction_laws import mu_kinetic, mu_kinetic_base, mu_static
 from rigctl.model.params import BASE_PARAMS, ParameterError, ParamInfo, check_values
+from rigctl.model.terms import TermSet, build_terms
 
 BASES: dict[str, tuple[str, ...]] = {
     "paper": ("stress_evolution",),
@@ -49,6 +50,8 @@ class CoreSetup:
     theta0_s: float
     slip_hooks: tuple[EffectEntry, ...]
     output_hooks: tuple[EffectEntry, ...]
+    terms: TermSet = field(default_factory=TermSet)
+    """The active plug-in terms (compiled); with any, the kernel takes the general path."""
 
 
 @dataclass(frozen=True)
@@ -172,6 +175,7 @@ class ModelSpec:
             theta0_s=theta0,
             slip_hooks=tuple(e for e in self.effects if e.effect.has_slip_hook()),
             output_hooks=tuple(e for e in self.effects if e.effect.has_output_hook()),
+            terms=build_terms([(e.effect, e.values) for e in self.effects], bv),
         )
 
     def invalid_reason(self, fn_range_N: tuple[float, float] = (0.0, 0.0)) -> str | None:

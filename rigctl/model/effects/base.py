@@ -5,7 +5,11 @@ bounds, an ``off`` value at which it has no influence) and up to three hooks:
 
 * :meth:`Effect.apply` - set or scale model coefficients before a run (``core`` below);
 * :meth:`Effect.on_slip_end` - update coefficients after every global slip (wear, degradation...);
-* :meth:`Effect.transform_output` - act on the recorded outputs (sensor or probe behaviour).
+* :meth:`Effect.transform_output` - act on the recorded outputs (sensor or probe behaviour);
+
+and up to three terms of the equations of motion, plain Python functions that the engine compiles
+with numba when the model is built (:mod:`rigctl.model.terms`): :meth:`Effect.friction_term`,
+:meth:`Effect.force_term` and :meth:`Effect.state_rate` (with :attr:`Effect.state_names`).
 
 ``core`` is a :class:`CoreParams`: the coefficients the compiled integrator reads, by name. Built-in
 and user effects use exactly the same interface (docs/effects.md).
@@ -13,9 +17,9 @@ and user effects use exactly the same interface (docs/effects.md).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -93,6 +97,7 @@ class SlipContext:
     """What an ``on_slip_end`` hook learns about the global slip that just ended."""
 
     t_s: float
+    """End of the slip [s]"""
     n_slips: int
     """Completed global slips so far, this one included (1 after the first)."""
     slip_m: float
@@ -100,6 +105,15 @@ class SlipContext:
     fn_N: float
     peak_N: float
     trough_N: float
+    x_start_m: float = 0.0
+    """Slider position X at the start of the slip [m]"""
+    x_end_m: float = 0.0
+    """Slider position X at the end of the slip [m]"""
+    peak_velocity_m_s: float = 0.0
+    """Highest |V| during the slip [m/s]"""
+    stick_s: float = 0.0
+    """Stick time before the slip: from the end of the previous global slip (the start of the run
+    for the first) to the start of this one [s]"""
 
 
 class Effect:
@@ -137,6 +151,11 @@ class Effect:
        them. Bounds say what is plausible; ``invalid_reason`` says what cannot be.
     7. Test the effect with :class:`rigctl.testing.EffectContract` (off-reduction, bounds,
        determinism); the built-in effects pass it.
+    8. Terms in the equations of motion (:meth:`friction_term`, :meth:`force_term`,
+       :meth:`state_rate`) are plain functions of numbers and float arrays that numba can compile
+       (no Python objects, no globals that change); they read their parameters from ``p`` (this
+       effect's values in the order of ``params``) and their own state variables from ``z``.
+       While :meth:`terms_active` is False (at the off values) they are left out of the run.
     """
 
     name: ClassVar[str] = ""
@@ -190,6 +209,50 @@ class Effect:
         """Why these values (with the base parameters ``base``) are physically impossible, in one
         line naming the parameters; None when they are possible (the default)."""
         return None
+
+    # --- terms in the equations of motion (docs/effects.md, section 3) --------------------------
+    state_names: ClassVar[tuple[str, ...]] = ()
+    """Names (with units) of this effect's own state variables, integrated by :meth:`state_rate`."""
+
+    @staticmethod
+    def friction_term() -> Callable[..., Any] | None:
+        """A friction law ``mu_eff = f(p, mu, x_m, v_m_s, t_s, fn_N, stick_s, z)``, or None.
+
+        Called at every step of the integrator with the coefficient the model computes without
+        it (``mu``: the static one of a stuck or presliding element, the kinetic one in a global
+        slip), the slider's position X and velocity V, the time, the normal force the interface
+        carries, the element's stick time (0 while it slides) and this effect's state ``z``;
+        returns the coefficient to use. Several friction terms apply in the model's order."""
+        return None
+
+    @staticmethod
+    def force_term() -> Callable[..., Any] | None:
+        """An extra force on the slider ``F = f(p, x_m, v_m_s, t_s, fn_N, z)`` [N] (positive
+        along +X, added to M X''), or None."""
+        return None
+
+    @staticmethod
+    def state_rate() -> Callable[..., Any] | None:
+        """The evolution law of :attr:`state_names`: ``f(p, x_m, v_m_s, t_s, fn_N, z, dz_dt)``
+        writes dz/dt into ``dz_dt`` (returns nothing), or None."""
+        return None
+
+    def initial_state(self, values: Mapping[str, float]) -> tuple[float, ...]:
+        """Values of :attr:`state_names` at the start of a run (zeros unless overridden)."""
+        return tuple(0.0 for _ in self.state_names)
+
+    def terms_active(self, values: Mapping[str, float], base: Mapping[str, float]) -> bool:
+        """Whether the terms act at these values: by default, unless every parameter is at its
+        off value. An effect whose terms vanish while some parameters differ from off (a
+        wavelength at zero amplitude) overrides it, so that the model keeps its exact path."""
+        off = self.off_values(base)
+        return any(values[p.name] != off[p.name] for p in self.params)
+
+    @classmethod
+    def has_terms(cls) -> bool:
+        return (cls.friction_term is not Effect.friction_term
+                or cls.force_term is not Effect.force_term
+                or cls.state_rate is not Effect.state_rate)
 
     @classmethod
     def has_slip_hook(cls) -> bool:

@@ -26,6 +26,7 @@ from rigctl.model.layout import (
     E_T_END,
     E_T_START,
     E_TROUGH,
+    E_V_PEAK,
     E_X_START,
     I_GSLIP,
     I_NEVENT,
@@ -39,6 +40,7 @@ from rigctl.model.layout import (
     S_EV_MIN,
     S_EV_PEAK,
     S_EV_T0,
+    S_EV_VMAX,
     S_EV_X0,
     S_K_USED,
     S_SLIP_CUM,
@@ -77,6 +79,7 @@ def start_global_slip(
     fs[S_EV_X0] = fs[S_X]
     fs[S_EV_PEAK] = fd
     fs[S_EV_MIN] = fd
+    fs[S_EV_VMAX] = abs(fs[S_V])
     fs[S_STRIB] = 0.0
     if cp[P_VS] > 0.0:
         fs[S_STRIB] = stribeck_amplitude(cp, fn) * stribeck_shape(cp, abs(fs[S_V]))
@@ -129,10 +132,17 @@ def end_global_slip(
     ev[n_ev, E_T_END] = fs[S_T]
     ev[n_ev, E_TROUGH] = min(fd, fs[S_EV_MIN]) if sign > 0 else max(fd, fs[S_EV_MIN])
     ev[n_ev, E_SLIP] = fs[S_X] - fs[S_EV_X0]
+    ev[n_ev, E_V_PEAK] = fs[S_EV_VMAX]
     fs[S_SLIP_CUM] += abs(fs[S_X] - fs[S_EV_X0])
     ist[I_NEVENT] = n_ev + 1
     ist[I_NSLIP] += 1
     ist[I_GSLIP] = 0
+
+
+@njit(cache=True)
+def note_slip_speed(fs: np.ndarray, v: float) -> None:
+    """Keep the running slip's highest |V| (the event's peak slip velocity) up to date."""
+    fs[S_EV_VMAX] = max(fs[S_EV_VMAX], abs(v))
 
 
 @njit(cache=True)

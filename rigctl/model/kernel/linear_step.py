@@ -14,7 +14,12 @@ from numba import njit
 from rigctl.model.friction_laws import element_stiffness, mu_kinetic, mu_static
 from rigctl.model.kernel.event_search import ElementSet, event_possible, first_event
 from rigctl.model.kernel.forces import drive_force
-from rigctl.model.kernel.global_slip import end_global_slip, note_slip_force, start_global_slip
+from rigctl.model.kernel.global_slip import (
+    end_global_slip,
+    note_slip_force,
+    note_slip_speed,
+    start_global_slip,
+)
 from rigctl.model.kernel.inputs import Segment
 from rigctl.model.layout import (
     I_GSLIP,
@@ -84,6 +89,35 @@ def extreme_drive_force(
             x2 = lo + GOLDEN * (hi - lo)
             f2 = fd_at(x2)
     return sign * min(best, f1, f2)
+
+
+@njit(cache=True)
+def peak_speed(sign: int, sol: ModalSolution, tau_e: float) -> float:
+    """Highest |V| over [0, tau_e] of a global slip step (V of one sign, one half-swing of the
+    slip oscillation: unimodal; golden-section search on the exact solution, ends included)."""
+    lo = 0.0
+    hi = tau_e
+    best = max(sign * velocity(sol, lo), sign * velocity(sol, hi))
+    x1 = hi - GOLDEN * (hi - lo)
+    x2 = lo + GOLDEN * (hi - lo)
+    f1 = sign * velocity(sol, x1)
+    f2 = sign * velocity(sol, x2)
+    for _ in range(60):
+        if hi - lo <= 1e-12 * tau_e:
+            break
+        if f1 > f2:
+            hi = x2
+            x2 = x1
+            f2 = f1
+            x1 = hi - GOLDEN * (hi - lo)
+            f1 = sign * velocity(sol, x1)
+        else:
+            lo = x1
+            x1 = x2
+            f1 = f2
+            x2 = lo + GOLDEN * (hi - lo)
+            f2 = sign * velocity(sol, x2)
+    return max(best, f1, f2)
 
 
 @njit(cache=True)
@@ -184,6 +218,7 @@ def linear_step(
     fn_e = fn0 + fn1 * tau_e
     if gslip:
         note_slip_force(fs, ist[I_SIGN], extreme_drive_force(cp, ist[I_SIGN], sol, seg, tau_e))
+        note_slip_speed(fs, peak_speed(ist[I_SIGN], sol, tau_e))
     if not event:
         return tau_e, False
 

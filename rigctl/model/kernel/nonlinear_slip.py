@@ -23,7 +23,7 @@ from rigctl.model.friction_laws import (
 )
 from rigctl.model.kernel.event_search import BISECT_ITERS
 from rigctl.model.kernel.forces import drive_force
-from rigctl.model.kernel.global_slip import end_global_slip, note_slip_force
+from rigctl.model.kernel.global_slip import end_global_slip, note_slip_force, note_slip_speed
 from rigctl.model.kernel.inputs import Segment
 from rigctl.model.layout import (
     FN_CONTACT_MIN_N,
@@ -315,6 +315,7 @@ def nonlinear_slip_step(
         s = SlipState(sn.x, sn.v, sn.th, sn.y, en)
         tloc += hs
         note_slip_force(fs, sign, drive_force(cp, xs0 + vs * tloc, vs, s.x, s.v))
+        note_slip_speed(fs, s.v)
     _store(fs, s)
     fs[S_T] += h
     return h, False
