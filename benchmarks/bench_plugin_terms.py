@@ -1,0 +1,104 @@
+"""Benchmark: a model with a plug-in term against the same term built in, side by side.
+
+The same drag -c V (c = 30 N s/m) on the paper model, 3 s at 1e-4 m/s and 300 N (1024 Hz):
+
+* ``built_in_general``: the library's ``interface_damping`` on the general path (forced there by a
+  plug-in force that adds nothing), i.e. the term compiled into the integrator;
+* ``plugin``: the drag as a plug-in force term (a first-class function call per evaluation);
+* ``built_in_exact``: the library's ``interface_damping`` on the exact path (no plug-in term).
+
+Target (issue 37): plugin / built_in_general >= 0.5 in speed. CPU seconds, medians of repeats.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model
+
+C_N_S_PER_M = 30.0
+
+
+def _drag(p: np.ndarray, x: float, v: float, t: float, fn: float, z: np.ndarray) -> float:
+    return -p[0] * v
+
+
+def _nothing(p: np.ndarray, x: float, v: float, t: float, fn: float, z: np.ndarray) -> float:
+    return 0.0 * p[0]
+
+
+class PluginDrag(Effect):
+    name = "bench_drag"
+    summary = "a drag -c V as a plug-in force"
+    signature = "as interface_damping"
+    reveal_protocol = "any"
+    params = (ParamSpec("c_N_s_per_m", C_N_S_PER_M, 0.0, 300.0, "N s/m", "drag", off=0.0),)
+
+    @staticmethod
+    def force_term() -> Callable[..., Any]:
+        return _drag
+
+
+class NoForce(Effect):
+    name = "bench_nothing"
+    summary = "a plug-in force of zero (puts a model on the general path)"
+    signature = "none"
+    reveal_protocol = "any"
+    params = (ParamSpec("on", 1.0, 0.0, 1.0, "-", "active", off=0.0),)
+
+    @staticmethod
+    def force_term() -> Callable[..., Any]:
+        return _nothing
+
+
+def _cpu_s(sim: Simulator, drive: Drive, repeats: int) -> float:
+    sim.run(drive)  # compile / load the cache
+    times = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        sim.run(drive)
+        times.append(time.process_time() - c0)
+    return statistics.median(times)
+
+
+def measure(duration_s: float = 3.0, repeats: int = 3) -> dict[str, float]:
+    drive = Drive.constant(300.0, 1e-4, duration_s)
+    damp = {"interface_damping": {"c_N_s_per_m": C_N_S_PER_M}}
+    models = {
+        "built_in_general": build_model("paper", effects=["interface_damping", NoForce],
+                                        effect_params=damp),
+        "plugin": build_model("paper", effects=[PluginDrag]),
+        "built_in_exact": build_model("paper", effects=["interface_damping"], effect_params=damp),
+    }
+    out = {f"{k}_cpu_s": _cpu_s(Simulator(m), drive, repeats) for k, m in models.items()}
+    out["simulated_s"] = duration_s
+    out["plugin_speed_vs_built_in_general"] = out["built_in_general_cpu_s"] / out["plugin_cpu_s"]
+    out["plugin_speed_vs_built_in_exact"] = out["built_in_exact_cpu_s"] / out["plugin_cpu_s"]
+    a = Simulator(models["plugin"]).run(drive)
+    b = Simulator(models["built_in_exact"]).run(drive)
+    out["max_ft_difference_plugin_vs_exact_N"] = float(np.max(np.abs(a.ft_N - b.ft_N)))
+    return out
+
+
+def main() -> int:
+    quick = "--quick" in sys.argv
+    res = measure(1.0 if quick else 3.0, 2 if quick else 5)
+    if "--json" in sys.argv:
+        print(json.dumps(res, indent=2))
+    else:
+        for k, v in res.items():
+            print(f"{k:40s} {v:.4g}")
+    ok = res["plugin_speed_vs_built_in_general"] >= 0.5
+    print(f"target plug-in >= 50 % of built in (same path): {'met' if ok else 'NOT met'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
