@@ -1,4 +1,5 @@
 # Two commands do everything on a fresh clone: `make run` and `make test`.
+# `make test` is the fast tier (<= 5 minutes on 2 cores); `make test-all` adds the slow tier (CI).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -7,7 +8,7 @@ export QT_QPA_PLATFORM ?= offscreen
 export MPLBACKEND ?= Agg
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
-.PHONY: run test lint typecheck unit bench clean
+.PHONY: run test test-all lint typecheck unit unit-all bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,10 +32,19 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
+# Two pytest workers (this machine's two cores); a test file stays on one worker, so its
+# module fixtures are built once. --durations shows creeping costs.
+PYTEST := $(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=20
+
 unit: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(PYTEST) -m "not slow"
+
+unit-all: $(STAMP)
+	$(PYTEST)
 
 test: lint typecheck unit
+
+test-all: lint typecheck unit-all
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
