@@ -1,30 +1,25 @@
 """The operator's run panel: choose a protocol, set its parameters, dry-run it, run it, watch it.
 
-Threading: the rig is opened and the protocol runs in one worker :class:`threading.Thread` per action
-(dry run or run); the GUI thread never waits on a device. The worker talks to the GUI only through
-Qt signals (queued into the GUI thread): the plan, the progress callback of the
-:class:`~experiments.runner.Runner`, the live-data subscription and the final outcome. The GUI talks
-to the worker only through :class:`~experiments.context.Controls` (pause/resume/abort, thread-safe).
-Live forces come from a bounded subscription to the acquisition's publisher, drained by a QTimer in
-the GUI thread: a slow GUI loses its own oldest blocks (counted), never the recorder's.
+Where the jobs execute is a :class:`~rigctl.gui.run_backend.RunBackend`, the only thing the panel
+knows of it: the run service (:class:`~rigctl.gui.service_backend.ServiceBackend`, ``rigctl gui``)
+or a worker thread of this process (:class:`~rigctl.gui.inprocess_backend.InProcessBackend`,
+``--in-process`` and a panel given an open rig). The GUI thread never waits on a device. The
+back-end answers with Qt signals queued into the GUI thread (the plan, progress, live data, the
+outcome); the panel calls it from the GUI thread (start, pause, resume, abort, e-stop). Live forces
+come from a bounded mailbox drained by a QTimer in the GUI thread: a slow GUI loses its own oldest
+blocks (counted), never the recorder's.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import threading
 import time
-from collections import deque
-from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QObject, Qt, QTimer, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QFont
 from PySide6.QtWidgets import (
-    QApplication,
     QCheckBox,
     QComboBox,
     QFileDialog,
@@ -40,106 +35,44 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from experiments.context import Controls
 from experiments.errors import PlanError
 from experiments.protocols import PROTOCOLS, Protocol
-from experiments.runner import Plan, Runner, RunOutcome
-from rigctl.acquisition import Acquisition
-from rigctl.acquisition.publisher import Subscription
+from experiments.runner import Plan, RunOutcome
 from rigctl.config import RigConfig
 from rigctl.gui.live_plot import LivePlot
 from rigctl.gui.param_table import ParamTable
 from rigctl.gui.queue_view import QueueView
+from rigctl.gui.run_backend import BackendSignals, JobResult, LiveBlocks, RunBackend, RunJob
 from rigctl.gui.run_summary import values_summary
-from rigctl.rigs import OpenRig, open_rig, parse_speed
-from rigctl.runservice.client import ServiceClient
-from rigctl.runservice.culprits import refusal_culprits
-from rigctl.runservice.events import WarningForwarder
-from rigctl.runservice.frames import start_forwarding
+from rigctl.rigs import OpenRig, parse_speed
 from rigctl.runservice.queue import QueueState
 from rigctl.runservice.wire import Address, JobSpec
 from rigctl.status import RunStatus
 
 PLOT_WINDOW_S = 60.0
 """Rig time shown by the live plot."""
-SUBSCRIPTION_BLOCKS = 512
-"""Bound of the live-data mailbox (DAQ blocks); the GUI drains it and redraws every ``DRAIN_INTERVAL_MS``
-(about 30 frames per second)."""
 DRAIN_INTERVAL_MS = 33
-FRAME_MAILBOX = 16
-"""Bound of the live camera-image mailbox (LiveFrames, a few a second)."""
+"""The live mailboxes are drained and the plot redrawn this often (about 30 frames per second)."""
 ABORT_REASON = "aborted by the operator"
 ESTOP_REASON = "emergency stop by the operator"
 
 _RED, _GREEN, _ORANGE = "#c62828", "#2e7d32", "#e65100"
 
 
-@dataclass(frozen=True)
-class _Job:
-    dry: bool
-    protocol: Protocol
-    given: dict[str, str]
-    speed: float
-    speed_text: str
-    out: Path | None
-    overwrite: bool
-    camera: bool
-    controls: Controls
-    operator: str
-    notes: str
-    serial: int
-    """The panel's run serial when this job began: its camera frames are shown only while it is
-    the latest (a finished run's forwarder flushes its last frame after the next run began)."""
+def make_backend(signals: BackendSignals, config: RigConfig, backend: str, *,
+                 rig: OpenRig | None, speed: str, service: Address | None,
+                 config_path: str | None) -> RunBackend:
+    """The run service's client if ``service`` is given (and no rig), else a worker thread."""
+    if service is not None and rig is None:
+        from rigctl.gui.service_backend import ServiceBackend
+        from rigctl.runservice.client import ServiceClient
 
+        return ServiceBackend(signals, lambda on_message: ServiceClient.ensure(
+            on_message, backend=backend, speed_text=speed, config_path=config_path,
+            address=service))
+    from rigctl.gui.inprocess_backend import InProcessBackend
 
-@dataclass(frozen=True)
-class _Result:
-    kind: str
-    """'dry' (plan shown), 'refused' (plan error), 'run' (outcome), 'error' (nothing recorded)."""
-    message: str = ""
-    outcome: RunOutcome | None = None
-    culprits: tuple[str, ...] = ()
-    """For 'refused': the edited parameters that cause the refusal (their rows are marked)."""
-
-
-class _WorkerSignals(QObject):
-    """Everything the worker thread tells the GUI; emitted from the worker, queued to the GUI."""
-
-    planned = Signal(object)  # Plan
-    subscribed = Signal(object)  # Subscription to the acquisition's "daq" topic
-    progress = Signal(int, int, str, float, float, float)  # i, n, step, elapsed, eta, device t
-    done = Signal(object)  # _Result
-    service_log = Signal(str, str)  # level, text (run service)
-    devices = Signal(object)  # RigSnapshot from the run service
-    jog_result = Signal(bool, str)
-    service_lost = Signal()
-    live_blocks = Signal(object)  # list of DAQ blocks just drained (GUI thread; the live view)
-    live_frames = Signal(object)  # list of LiveFrames just drained (GUI thread; the live view)
-    run_event = Signal(str, str)  # level ("info", "warning", "error"), text: the run's events
-    run_started = Signal(object)  # Path of the run file: a run (not a dry run) is starting
-    remote_started = Signal(object)  # JobSpec: the run service started a run (the queue's too)
-    queue_state = Signal(object)  # QueueState from the run service
-
-
-class _LiveMailbox:
-    """Live DAQ blocks from the run service, bounded like a publisher subscription (oldest dropped)."""
-
-    def __init__(self, maxlen: int) -> None:
-        self._items: deque[Any] = deque(maxlen=maxlen)
-        self._lock = threading.Lock()
-        self.dropped = 0
-
-    def put(self, item: Any) -> None:
-        with self._lock:
-            if len(self._items) == self._items.maxlen:
-                self.dropped += 1
-            self._items.append(item)
-
-    def drain(self) -> list[Any]:
-        with self._lock:
-            items = list(self._items)
-            self._items.clear()
-            return items
+    return InProcessBackend(signals, config, backend, rig)
 
 
 class RunPanel(QWidget):
@@ -167,13 +100,12 @@ class RunPanel(QWidget):
         self.config = config
         self.backend = backend
         self._given_rig = rig
-        self.last_rig: OpenRig | None = rig
-        """The rig of the latest action (closed again unless it was given)."""
         self.last_outcome: RunOutcome | None = None
-        self._thread: threading.Thread | None = None
-        self._controls: Controls | None = None
         self._close_when_done = False
-        self._sub: Subscription | _LiveMailbox | None = None
+        self._unaborted_job = False
+        """A job has begun and the operator has not aborted it (nor pressed the e-stop during it):
+        closing the window while it goes asks first."""
+        self._sub: LiveBlocks | None = None
         self._plan: Plan | None = None
         self._progress: tuple[int, int, str, float, float, float] | None = None
         self._t_latest = math.nan
@@ -192,7 +124,11 @@ class RunPanel(QWidget):
         self._queue_item: int | None = None
         """The queue item of the run going (None: a run started on its own)."""
         self._file_shown = False
-        self._sig = _WorkerSignals(self)
+        self._job_serial = 0
+        """The serial of the latest job begun (RunBackend.new_job)."""
+        self.run_path: Path | None = None
+        """The run file of the latest run (None before one and for a dry run)."""
+        self._sig = BackendSignals(self)
         self._sig.planned.connect(self._on_planned)
         self._sig.subscribed.connect(self._on_subscribed)
         self._sig.progress.connect(self._on_progress)
@@ -200,28 +136,17 @@ class RunPanel(QWidget):
         self._sig.service_log.connect(self._on_service_log)
         self._sig.service_lost.connect(self._on_service_lost)
         self._sig.remote_started.connect(self._on_remote_started)
-        self._client: ServiceClient | None = None
-        self._remote_busy = False
-        self._mailbox = _LiveMailbox(SUBSCRIPTION_BLOCKS)
-        self._frames = _LiveMailbox(FRAME_MAILBOX)
-        self._run_serial = 0
-        """Counts dry runs and runs begun here; a worker's camera frames carry its job's serial."""
-        self._serial_lock = threading.Lock()
-        self.run_path: Path | None = None
-        """The run file of the latest run (None before one and for a dry run)."""
-        self._live_announced = False
+        self._sig.queue_state.connect(self._on_queue_state)
         self._build(speed)
-        if service is not None and rig is None:
-            self._client = ServiceClient.ensure(
-                self._on_service_message, backend=backend, speed_text=speed, config_path=config_path,
-                address=service)
         self._timer = QTimer(self)
         self._timer.setInterval(DRAIN_INTERVAL_MS)
         self._timer.timeout.connect(self._tick)
-        self._sig.queue_state.connect(self._on_queue_state)
         self.queue_view.command.connect(self._on_queue_command)
         self.queue_view.add_requested.connect(self.add_to_queue)
-        if self._client is None:
+        self._runs: RunBackend = make_backend(self._sig, config, backend, rig=rig, speed=speed,
+                                              service=service, config_path=config_path)
+        """Where the jobs execute: the panel talks to it only through the RunBackend protocol."""
+        if not self._runs.has_service:
             self.queue_view.setEnabled(False)
             self.queue_view.setToolTip("the queue lives in the run service; this window runs "
                                        "protocols in process (--in-process or a held rig)")
@@ -259,8 +184,7 @@ class RunPanel(QWidget):
         self.speed_combo.setToolTip("simulated rig clock: 1 (real time), N times faster, or max "
                                     "(paced by the recorder)")
         if self._given_rig is not None:
-            self.speed_combo.setCurrentText("max" if math.isinf(self._given_rig.speed)
-                                            else f"{self._given_rig.speed:g}")
+            self.speed_combo.setCurrentText(self._given_rig.speed_text)
             self.speed_combo.setEnabled(False)
         elif self.backend == "real":
             self.speed_combo.setCurrentText("1")
@@ -395,48 +319,9 @@ class RunPanel(QWidget):
     # ------------------------------------------------------------------ actions (GUI thread)
     @property
     def busy(self) -> bool:
-        if self._client is not None:
-            return self._remote_busy
-        return self._thread is not None and self._thread.is_alive()
+        return self._runs.busy
 
-    # ------------------------------------------------------------------ run service (reader thread)
-    def _on_service_message(self, kind: str, payload: Any) -> None:
-        """Runs in the client's reader thread: only emits signals (queued into the GUI thread)."""
-        if kind == "daq":
-            self._mailbox.put(payload)
-            if not self._live_announced:
-                self._live_announced = True
-                self._sig.subscribed.emit(self._mailbox)
-        elif kind == "frame":
-            self._frames.put(payload)
-        elif kind == "planned":
-            self._sig.planned.emit(payload)
-        elif kind == "progress":
-            self._sig.progress.emit(*payload)
-        elif kind == "done":
-            self._sig.done.emit(_Result(payload.kind, payload.message, payload.outcome,
-                                        tuple(getattr(payload, "culprits", ()))))
-        elif kind == "started":
-            if getattr(payload, "queue_item", None) is not None:
-                # a queued run: its live data follow in this thread, so the live mailboxes are
-                # reset here, in message order (the service sends all of the previous run's
-                # before its done); reset in the GUI thread, this run's first items would go too
-                self._reset_live_mailboxes()
-            self._sig.remote_started.emit(payload)
-        elif kind == "queue":
-            self._sig.queue_state.emit(payload)
-        elif kind in ("hello", "state"):
-            if getattr(payload, "queue", None) is not None:
-                self._sig.queue_state.emit(payload.queue)
-        elif kind == "devices":
-            self._sig.devices.emit(payload)
-        elif kind == "jog_result":
-            self._sig.jog_result.emit(*payload)
-        elif kind == "log":
-            self._sig.service_log.emit(*payload)
-        elif kind == "lost":
-            self._sig.service_lost.emit()
-
+    # ------------------------------------------------------------------ run service messages
     def _on_service_log(self, level: str, text: str) -> None:
         self._sig.run_event.emit(level, text)
         if level in ("warning", "error"):
@@ -444,7 +329,7 @@ class RunPanel(QWidget):
                          announce=False)
 
     def _on_service_lost(self) -> None:
-        self._remote_busy = False
+        self._runs.ended()
         self._timer.stop()
         self._set_state("idle")
         self._status("the run service went away; restart the window to reconnect", _RED)
@@ -482,24 +367,14 @@ class RunPanel(QWidget):
             return out, True
         return out, False
 
-    def _reset_live_mailboxes(self) -> None:
-        """A new job: later camera frames and DAQ blocks are its own (the earlier ones are dropped;
-        an in-process job's frames carry its serial)."""
-        with self._serial_lock:  # no frame of the previous job is put between the two
-            self._run_serial += 1
-            self._frames.drain()
-            if self._client is not None:
-                self._live_announced = False
-                self._mailbox.drain()
-
     def _begin(self, protocol_name: str, out: Path | None, dry: bool, speed: float,
                queue_item: int | None) -> None:
         """Reset what the panel shows for a new dry run or run (started here or by the queue: a
         queued run's live mailboxes were reset as its ``started`` came)."""
-        self._controls = Controls()
+        self._unaborted_job = True
         self.run_path = out
         if queue_item is None:
-            self._reset_live_mailboxes()
+            self._job_serial = self._runs.new_job()
         self._speed = speed
         self._plan = None
         self._progress = None
@@ -545,32 +420,21 @@ class RunPanel(QWidget):
             out, overwrite = chosen
         operator, notes = self.operator_edit.text().strip(), self.notes_edit.text().strip()
         self._begin(self.protocol.name, out, dry, speed, None)
-        assert self._controls is not None
-        job = _Job(dry, self.protocol, given, speed, speed_text, out, overwrite,
-                   self.camera_check.isChecked(), self._controls, operator, notes,
-                   self._run_serial)
-        if self._client is not None:
-            spec = JobSpec(self.protocol.name, dict(given), None if out is None else str(out),
-                           overwrite=overwrite, camera=self.camera_check.isChecked(), dry=dry,
-                           speed_text=speed_text, operator=operator, notes=notes)
-            self._remote_busy = self._client.send("start", spec)
-            if not self._remote_busy:
-                self._on_service_lost()
-            return
-        self._thread = threading.Thread(target=self._work, args=(job,), name="rigctl-gui-run",
-                                        daemon=False)
-        self._thread.start()
+        job = RunJob(dry, self.protocol, given, speed, speed_text, out, overwrite,
+                     self.camera_check.isChecked(), operator, notes, self._job_serial)
+        if not self._runs.start(job):
+            self._on_service_lost()
 
     # ------------------------------------------------------------------ the queue (run service)
     def add_to_queue(self) -> bool:
         """Queue the form's protocol, values, run file, operator and notes; False if refused."""
-        if self._client is None:
+        if not self._runs.has_service:
             self._status("the queue needs the run service (not with --in-process)", _RED)
             return False
         try:
             given = self._given()
             speed_text = self.speed_combo.currentText().strip()
-            parse_speed(speed_text)
+            speed = parse_speed(speed_text)
         except (PlanError, ValueError) as exc:
             self._status(str(exc), _RED)
             return False
@@ -580,11 +444,10 @@ class RunPanel(QWidget):
         if chosen is None:
             return False
         out, overwrite = chosen
-        spec = JobSpec(self.protocol.name, dict(given), str(out), overwrite=overwrite,
-                       camera=self.camera_check.isChecked(), speed_text=speed_text,
-                       operator=self.operator_edit.text().strip(),
-                       notes=self.notes_edit.text().strip())
-        if not self._client.send("queue_add", spec):
+        job = RunJob(False, self.protocol, given, speed, speed_text, out, overwrite,
+                     self.camera_check.isChecked(), self.operator_edit.text().strip(),
+                     self.notes_edit.text().strip())
+        if not self._runs.enqueue(job):
             self._on_service_lost()
             return False
         self._status(f"queued {self.protocol.name} -> {out}", None, announce=False)
@@ -606,28 +469,24 @@ class RunPanel(QWidget):
         """The service started a run that this window did not launch: a queued one."""
         if spec.queue_item is None:
             return
-        self._remote_busy = True
+        self._runs.adopt()
         self._begin(spec.protocol, None if spec.out is None else Path(spec.out), spec.dry,
                     parse_speed(spec.speed_text), spec.queue_item)
 
     def pause(self) -> None:
-        if self._controls is not None and self.busy:
-            if not self._controls.paused:
+        if self.busy:
+            if not math.isfinite(self._pause_wall_t0):  # not paused already
                 self._pause_rig_t0 = self._t_latest
                 self._pause_wall_t0 = time.monotonic()
-            self._controls.pause()
-            if self._client is not None:
-                self._client.send("pause")
+            self._runs.pause()
             self._set_state("paused")
             self._status("paused: the stages hold where they are (rig time and recording go on)",
                          _ORANGE)
 
     def resume(self) -> None:
-        if self._controls is not None and self.busy:
+        if self.busy:
             self._end_pause()
-            self._controls.resume()
-            if self._client is not None:
-                self._client.send("resume")
+            self._runs.resume()
             self._set_state("running")
             self._status("running", None)
 
@@ -642,40 +501,24 @@ class RunPanel(QWidget):
         self._pause_rig_t0 = self._pause_wall_t0 = math.nan
 
     def abort(self, reason: str = ABORT_REASON) -> None:
-        if self._controls is not None and self.busy:
+        if self.busy:
             self._end_pause()
-            self._controls.abort(reason)
-            self._controls.resume()
-            if self._client is not None:
-                self._client.send("abort", reason)
+            self._unaborted_job = False
+            self._runs.abort(reason)
             self._set_state("aborting")
             self._status("aborting: stopping and releasing the normal load…", _ORANGE)
 
     def emergency_stop(self, reason: str = ESTOP_REASON) -> str:
         """The drivers' latched emergency stop on both stages, from any state; aborts a run.
 
-        Returns what was done (for the status bar). In the run service the service does the same.
-        The run's abort is set before the stages are stopped, so that the protocol's step sees an
-        abort (status ``aborted``) rather than only the stage alarm the e-stop causes.
+        Returns what was done (for the status bar). The back-end sets the run's abort before the
+        stages are stopped (in the run service the service does the same), so that the protocol's
+        step sees an abort (status ``aborted``) rather than only the stage alarm the e-stop causes.
         """
-        running = self._controls is not None and self.busy
+        running = self.busy
         if running:
-            assert self._controls is not None
-            self._controls.abort(reason)
-            self._controls.resume()
-        if self._client is not None:
-            sent = self._client.send("estop", reason)
-            text = ("EMERGENCY STOP sent to the run service" if sent
-                    else "EMERGENCY STOP could not be sent: the run service is gone")
-        else:
-            rig = self._given_rig if self._given_rig is not None else (
-                self.last_rig if self.busy else None)
-            if rig is None:
-                text = "EMERGENCY STOP: no rig is open (nothing is moving)"
-            else:
-                failures = trigger_emergency_stop(rig, reason)
-                text = "EMERGENCY STOP: stages stopped, motion refused until reset" + (
-                    f"; failed: {failures}" if failures else "")
+            self._unaborted_job = False
+        text = self._runs.emergency_stop(reason)
         if running:
             self._set_state("aborting")
         self._status(text, _RED)
@@ -684,31 +527,25 @@ class RunPanel(QWidget):
     def shutdown(self, timeout_s: float = 30.0) -> bool:
         """Abort any run and wait for the worker (safe state reached); True if it ended."""
         self.abort()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
-        deadline = time.monotonic() + timeout_s
-        while self._client is not None and self._remote_busy and time.monotonic() < deadline:
-            QApplication.processEvents()  # the outcome arrives as a queued signal
-            time.sleep(0.02)
+        self._runs.wait(timeout_s)
         return not self.busy
 
     @property
-    def signals(self) -> _WorkerSignals:
+    def signals(self) -> BackendSignals:
         """The panel's signals (the main window connects ``devices`` and ``jog_result``)."""
         return self._sig
 
     @property
     def has_service(self) -> bool:
-        return self._client is not None
+        return self._runs.has_service
 
     def send_service(self, kind: str, payload: Any = None) -> bool:
         """A command to the run service (False without one, or if it is gone)."""
-        return self._client is not None and self._client.send(kind, payload)
+        return self._runs.send(kind, payload)
 
     def disconnect_service(self) -> None:
         """Close the connection to the run service (it stops by itself once idle with no client)."""
-        if self._client is not None:
-            self._client.close()
+        self._runs.close()
 
     def _ask(self, question: str) -> bool:
         answer = QMessageBox.question(self, "rigctl", question,
@@ -722,7 +559,7 @@ class RunPanel(QWidget):
             event.accept()
             return
         if not self._close_when_done:
-            if self._controls is not None and not self._controls.aborted and not self._ask(
+            if self._unaborted_job and not self._ask(
                     "A run is in progress. Abort it (the rig is brought to a safe state) and close?"):
                 event.ignore()
                 return
@@ -755,74 +592,6 @@ class RunPanel(QWidget):
         self.status_label.setStyleSheet(f"color: {color}; font-weight: bold" if color else "")
         self.status_message.emit(text)
 
-    # ------------------------------------------------------------------ worker thread
-    @contextlib.contextmanager
-    def _open(self, job: _Job) -> Iterator[OpenRig]:
-        if self._given_rig is not None:
-            yield self._given_rig
-            return
-        with open_rig(self.backend, self.config, job.speed) as rig:
-            self.last_rig = rig
-            yield rig
-
-    def _work(self, job: _Job) -> None:
-        """Runs in the worker thread: talks to the GUI only by emitting signals."""
-        result = _Result("error", "nothing done")
-        warnings = WarningForwarder(lambda level, text: self._sig.run_event.emit(level, text)).install()
-        try:
-            with self._open(job) as rig:
-                runner = self._runner(job, rig)
-                try:
-                    plan, _ = runner.plan()
-                except PlanError as exc:
-                    x0 = rig.devices.tangential_stage.position_m()
-                    result = _Result("refused", f"dry run refused: {exc}", culprits=refusal_culprits(
-                        job.protocol, job.given, rig.limits, x0, str(exc)))
-                    return
-                self._sig.planned.emit(plan)
-                if job.dry:
-                    result = _Result("dry", "dry run: nothing moved")
-                    return
-                outcome = runner.run()
-                result = _Result("run", outcome.status, outcome)
-        except PlanError as exc:
-            result = _Result("refused", f"refused: {exc}")
-        except Exception as exc:
-            result = _Result("error", f"{type(exc).__name__}: {exc}")
-        finally:
-            warnings.remove()
-            self._sig.done.emit(result)
-
-    def _put_frame(self, serial: int, frame: Any) -> None:
-        """A camera frame of job ``serial`` (forwarding thread): kept only while that job is the
-        latest. A run's forwarder flushes its last frame after the run ended, when the next run may
-        have begun; shown there it put the previous run's rig times into the new run's Isum plot."""
-        with self._serial_lock:
-            if serial == self._run_serial:
-                self._frames.put(frame)
-
-    def _runner(self, job: _Job, rig: OpenRig) -> Runner:
-        sig = self._sig
-
-        def on_acquisition(acq: Acquisition) -> None:
-            sig.subscribed.emit(acq.publisher.subscribe("daq", maxlen=SUBSCRIPTION_BLOCKS))
-            if acq.record_camera:
-                worker = threading.current_thread()
-                start_forwarding(acq.publisher.subscribe("camera", maxlen=120),
-                                 lambda frame: self._put_frame(job.serial, frame),
-                                 worker.is_alive, name="rigctl-gui-frames")
-
-        def progress(i: int, n: int, desc: str, elapsed: float, eta: float) -> None:
-            ctx = runner.ctx
-            sig.progress.emit(i, n, desc, elapsed, eta, ctx.acq.t_s if ctx else math.nan)
-
-        runner = rig.runner(  # built as rigctl run builds it (rigctl/rigs.py)
-            job.protocol, job.given, out=job.out, camera=job.camera, operator=job.operator,
-            notes=job.notes, metadata={"started_from": "gui"}, controls=job.controls,
-            progress=progress, overwrite=job.overwrite, on_acquisition=on_acquisition,
-        )
-        return runner
-
     # ------------------------------------------------------------------ signal handlers (GUI thread)
     def _on_planned(self, plan: Plan) -> None:
         self._plan = plan
@@ -831,7 +600,7 @@ class RunPanel(QWidget):
             text += f"\nwall time at speed {self._speed:g}: ~{plan.duration_s / self._speed:.0f} s"
         self.plan_view.setPlainText(text)
 
-    def _on_subscribed(self, sub: Subscription | _LiveMailbox) -> None:
+    def _on_subscribed(self, sub: LiveBlocks) -> None:
         self._sub = sub
         self._wall_start = time.monotonic()
         self._timer.start()
@@ -859,12 +628,11 @@ class RunPanel(QWidget):
             self._pause_rig_t0 = max(self._pause_rig_t0, t_dev)
         self._show_progress()
 
-    def _on_done(self, result: _Result) -> None:
-        self._remote_busy = False
+    def _on_done(self, result: JobResult) -> None:
+        self._runs.ended()
         self._tick()
         self._timer.stop()
         self._sub = None
-        self._thread = None
         self._end_pause()
         queued = self._queue_item is not None
         self._queue_item = None
@@ -929,7 +697,7 @@ class RunPanel(QWidget):
             return
         self._show_file()
         blocks = sub.drain()
-        frames = self._frames.drain()
+        frames = self._runs.drain_frames()
         if frames:
             self._sig.live_frames.emit(frames)
         if blocks:
@@ -975,17 +743,6 @@ class RunPanel(QWidget):
         self.progress_label.setText(
             f"step {i}/{n}: {desc}{note}\nrig time {rig_elapsed:.0f} s of ~{total:.0f} s, "
             f"ETA {remaining:.0f} s{wall_eta}")
-
-
-def trigger_emergency_stop(rig: OpenRig, reason: str) -> str:
-    """Trigger the latched emergency stop of every registry the rig's stages are on; failures as text."""
-    registries: list[Any] = []
-    for stage in (rig.devices.tangential_stage, rig.devices.normal_stage):
-        reg = stage.emergency_stop_registry
-        if all(reg is not r for r in registries):
-            registries.append(reg)
-    failures = [f"{f.stage_name}: {f.error}" for reg in registries for f in reg.trigger(reason)]
-    return "; ".join(failures)
 
 
 def panel_state(panel: RunPanel) -> dict[str, Any]:

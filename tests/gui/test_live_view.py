@@ -18,6 +18,7 @@ from rigctl.config.loader import default_config
 from rigctl.gui.live_contact import LiveProfile
 from rigctl.gui.live_view import LiveView, file_info, format_bytes
 from rigctl.gui.main_window import ESTOP_KEY, MainWindow
+from rigctl.gui.service_backend import ServiceBackend
 from rigctl.runservice.events import WarningForwarder, drop_events
 from rigctl.runservice.frames import FrameReducer, LiveFrame, downsample, intensity_sum
 from rigctl.runservice.wire import JobSpec
@@ -121,14 +122,25 @@ def test_a_frame_of_an_earlier_job_is_dropped(qtbot, rig):
     panel = window.panel
     try:
         panel._begin("tlre", None, True, 1.0, None)  # a dry run begins
-        old = panel._run_serial
+        old = panel._job_serial
         panel._begin("tlre", None, True, 1.0, None)  # and another
-        panel._put_frame(old, "frame of the earlier job")
-        panel._put_frame(panel._run_serial, "frame of this job")
-        kept = panel._frames.drain()
+        frames = panel._runs._frames  # the in-process back-end's: its forwarders put there
+        frames.put(old, "frame of the earlier job")
+        frames.put(panel._job_serial, "frame of this job")
+        kept = panel._runs.drain_frames()
     finally:
         panel._set_state("idle")  # nothing ran: the window closes without asking
     assert kept == ["frame of this job"]
+
+
+class _NoService:
+    """A run service's client that sends nowhere."""
+
+    def send(self, kind: str, payload: object = None) -> bool:
+        return True
+
+    def close(self) -> None:
+        pass
 
 
 def test_a_queued_run_keeps_its_first_frame_and_drops_the_previous_run_s(qtbot, rig):
@@ -138,17 +150,20 @@ def test_a_queued_run_keeps_its_first_frame_and_drops_the_previous_run_s(qtbot, 
     run's first frame, with its first Isum values, went too)."""
     window = tlre_window(qtbot, rig, Path("unused.h5"), camera=True)
     panel = window.panel
+    backend = ServiceBackend(panel.signals, lambda on_message: _NoService())
+    panel._runs = backend  # the run service's back-end, its messages fed by the test
     spec = JobSpec("tlre", {}, None, dry=True, queue_item=7)
     try:
         messages = [("frame", "last frame of the previous run"), ("started", spec),
                     ("frame", "first frame of the queued run")]
-        reader = threading.Thread(target=lambda: [panel._on_service_message(*m) for m in messages])
+        reader = threading.Thread(target=lambda: [backend.on_message(*m) for m in messages])
         reader.start()  # as the client's reader thread: `started` is queued into the GUI thread
         reader.join()
         qtbot.waitUntil(lambda: panel._queue_item == 7, timeout=5000)  # begun in the GUI thread
-        kept = panel._frames.drain()
+        assert panel.busy
+        kept = backend.drain_frames()
     finally:
-        panel._remote_busy = False
+        backend.ended()
         panel._set_state("idle")  # nothing ran: the window closes without asking
     assert kept == ["first frame of the queued run"]
 
