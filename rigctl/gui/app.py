@@ -26,7 +26,9 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
     Runs go to the run service (:mod:`rigctl.runservice`, started if none is listening), so a run
     outlives the window; ``in_process`` runs them in a worker thread of this process instead.
     Refuses to start (one line on stderr, exit 1) if the Qt binding fails the reference-count self-check
-    (:mod:`rigctl.gui.selfcheck`): such a window would abort mid-run.
+    (:mod:`rigctl.gui.selfcheck`): such a window would abort mid-run. Raises
+    :class:`~rigctl.gui.system_libraries.SystemLibraryError` (exit 2) naming the system libraries
+    Qt's ``xcb`` platform needs and cannot find, before Qt would stop on them.
     """
     from rigctl.gui import selfcheck
 
@@ -37,7 +39,9 @@ def run_gui(config: RigConfig, backend: str, speed: str = "1", argv: Sequence[st
     from PySide6.QtWidgets import QApplication
 
     from rigctl.gui.main_window import MainWindow
+    from rigctl.gui.system_libraries import check_xcb_libraries
 
+    check_xcb_libraries()  # before Qt loads its platform plugin (and stops on a missing library)
     existing = QApplication.instance()
     app = existing if isinstance(existing, QApplication) else QApplication([sys.argv[0], *argv])
     from rigctl.gui.gui_thread_gc import gui_thread_collection
