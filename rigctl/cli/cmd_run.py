@@ -107,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
         if speed != float("inf"):
             lines.append(f"wall time at speed {speed:g}: ~{plan.duration_s / speed:.0f} s")
         lines.append(_file_size_line(plan.duration_s, adapters.daq_layout(rig.config), camera,
-                                     out if out is not None else Path(config.storage.directory) / "x"))
+                                     out if out is not None else Path(config.storage.directory) / "x",
+                                     config.storage.min_free_bytes))
         if args.dry_run:
             show([*lines, "dry run: nothing moved"])  # a reader gone meanwhile: nothing moved
             return 0
@@ -205,14 +206,15 @@ def _bar_logging(bar: Any) -> Any:
         yield
 
 
-def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:
+def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path, reserve_bytes: int) -> str:
     """The run file's expected size (frames at the size measured for contact images with the
     configured compression, and at most if they do not compress), refused (UsageError) when the
-    output's file system cannot hold the expected size with the writer's reserve to spare."""
+    output's file system cannot hold the expected size with ``reserve_bytes`` to spare (the
+    configured ``storage.min_free_bytes``, which the run itself keeps)."""
     import shutil
 
     from rigctl.storage import estimate_run_bytes
-    from rigctl.storage.preflight import DEFAULT_MIN_FREE_BYTES, frame_bytes
+    from rigctl.storage.preflight import frame_bytes
 
     samples = estimate_run_bytes(duration_s, daq)
     total = estimate_run_bytes(duration_s, daq, camera)
@@ -226,7 +228,7 @@ def _file_size_line(duration_s: float, daq: Any, camera: Any, out: Path) -> str:
                  f"with {camera.compression}; up to {at_most / 1e6:,.0f} MB if the images do "
                  "not compress")
     text += f"); {free / 1e9:,.1f} GB free in {folder}"
-    if total + DEFAULT_MIN_FREE_BYTES > free:
-        raise UsageError(f"{text}: not enough (with {DEFAULT_MIN_FREE_BYTES / 1e6:.0f} MB to "
-                         "spare): free space, choose another --out, or --no-camera")
+    if total + reserve_bytes > free:
+        raise UsageError(f"{text}: not enough (with {reserve_bytes / 1e6:.0f} MB to spare, "
+                         "storage.min_free_bytes): free space, choose another --out, or --no-camera")
     return text

@@ -28,3 +28,15 @@ def test_the_configured_reserve_is_kept_by_the_run(tmp_path: Path) -> None:
             runner.run()
         assert rig.devices.normal_stage.position_m() == z0  # refused before any motion
     assert not out.exists()
+
+
+def test_the_dry_run_refuses_with_the_configured_reserve(tmp_path: Path, capsys) -> None:
+    from rigctl.cli.main import main
+
+    cfg = tmp_path / "rig.toml"
+    cfg.write_text(f"[storage]\nmin_free_bytes = {2**60}\n", encoding="utf-8")
+    code = main(["run", "nlre", "--config", str(cfg), "--dry-run", "--no-camera",
+                 "--out", str(tmp_path / "x.h5"), *[f"--param={k}={v}" for k, v in SHORT_NLRE.items()]])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "storage.min_free_bytes" in err and "not enough" in err
