@@ -39,3 +39,18 @@ def _collect_after_each_test() -> Iterator[None]:
     threads gone (the GUI-thread collector's timer runs only while a test processes events)."""
     yield
     gc.collect()
+
+
+@pytest.fixture(autouse=True)
+def _no_modal_question(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A modal question (``QMessageBox.question``) answers Yes at once in the tests instead of
+    waiting for a click: a test that failed with a run going used to hang at teardown in the
+    window's "abort and close?" dialog, where no timeout reaches (Qt's own event loop); Yes aborts
+    the run to the safe state, as an operator closing the window would. A test of a question
+    replaces the panel's ``_ask`` itself."""
+    from PySide6.QtWidgets import QMessageBox
+
+    def answer_yes(*_args: object, **_kwargs: object) -> QMessageBox.StandardButton:
+        return QMessageBox.StandardButton.Yes
+
+    monkeypatch.setattr(QMessageBox, "question", answer_yes)
