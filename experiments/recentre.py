@@ -20,8 +20,8 @@ Each move is recorded as a ``probe_recentre`` event (:mod:`rigctl.storage.probe_
 mount has arrived: the column, the move, the readings before and after, and the window of device
 time during which the mount may have been moving: from just before the command to its return plus
 the move's duration at :attr:`DisplacementProbe.mount_speed_m_s` plus ``MOUNT_SETTLE_S``. The samples
-in that window are kept as read; the analysis leaves delta out there and adds the move back after it
-(:mod:`rigctl.analysis.delta_stitch`). After the stage has returned, :class:`ReturnProbeMounts`
+in that window are kept as read; every reader adds the move back after it and bridges the window
+(:mod:`rigctl.records.delta_stitch`). After the stage has returned, :class:`ReturnProbeMounts`
 brings the mounts back to where they started.
 
 A re-centring that cannot be made (a manual mount, a move beyond the mount's travel, a headroom the

@@ -19,10 +19,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from rigctl.analysis.delta_stitch import stitch_run
 from rigctl.data import DataError, FloatArray, MeasuredRun
 from rigctl.io.load import CSV_SUFFIXES, RUN_FILE_SUFFIXES
 from rigctl.io.plausibility import check_plausible
+from rigctl.records.delta_stitch import stitch_run
 from rigctl.status import RunStatus
 from rigctl.storage import layout
 from rigctl.storage.reader import RunEvent, RunReader

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rigctl.data import DataError, MeasuredRun
+from rigctl.records.delta_stitch import stitch_record
 from rigctl.records.drive_profile import DriveProfile, drive_profile
 from rigctl.records.events import DetectionSettings, detect_slips
 from rigctl.records.feature_info import (
@@ -197,8 +198,10 @@ def prepare_run(run: MeasuredRun, name: str, delta_measured: bool | None = None,
     (:func:`rigctl.records.image_features.read_image_features`). ``ringing``: also fit the
     post-slip ringing (:func:`rigctl.records.ringing.run_ring_fits`; a model's starting mass
     and damping, not needed to analyse a run). ``coupling``: the campaign's dFn/dFt
-    (:func:`rigctl.records.drive_profile.drive_profile`)."""
+    (:func:`rigctl.records.drive_profile.drive_profile`). A run file's delta is read stitched
+    across the probes' re-centrings (:func:`rigctl.records.delta_stitch.stitch_record`)."""
     check_run(run)
+    run = stitch_record(run)
     prof = drive_profile(run, coupling=coupling)
     t = run.t_s - run.t_s[0]
     probes = probe_range(run, delta_measured)

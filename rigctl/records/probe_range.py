@@ -12,10 +12,11 @@ meaningless, while Ft, Fn and the stage are still valid. Over range is found
   of consecutive samples while the stage moves (a probe at rest during a hold or before motion is
   not saturated, the interface does not move either).
 
-Both are combined. The samples recorded while a probe's mount was moving (the windows of its
-``probe_recentre`` events, :func:`rigctl.storage.probe_events.moving_masks`) are not valid either,
-without counting as over range. The result is a per-sample mask of valid delta samples and a note
-per over-range probe.
+Both are combined. The samples recorded while a probe's mount was moving across a slip (the
+windows of its ``probe_recentre`` events across which the specimen was not steady,
+:func:`rigctl.records.delta_stitch.unsteady_windows`) are not valid either, without counting as
+over range; a move made while the specimen was steady is bridged and read like any sample. The
+result is a per-sample mask of valid delta samples and a note per over-range probe.
 
 A probe column that never changes over the whole record (all zero, or one constant: a rig without
 displacement probes, a CSV that fills the column) was **not measured**; it is not over range. When no
@@ -26,14 +27,13 @@ features (K(i), slip distance, lag, the initial-stage curve) are left out and th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rigctl.data import MeasuredRun
+from rigctl.records.delta_stitch import record_events, unsteady_windows
 from rigctl.records.signals import FloatArray, noise_sigma
-from rigctl.storage.probe_events import moving_masks
 
 if TYPE_CHECKING:
     from rigctl.storage.reader import RunEvent
@@ -120,20 +120,6 @@ def saturated(x: FloatArray, t: FloatArray, x_stage: FloatArray) -> np.ndarray:
     return out
 
 
-def _file_events(run: MeasuredRun) -> list[RunEvent]:
-    """The events of the run file ``run`` was read from ([] for CSV or no events)."""
-    src = run.source
-    if not src or Path(src).suffix.lower() not in (".h5", ".hdf5") or not Path(src).is_file():
-        return []
-    from rigctl.storage.reader import RunReader
-
-    try:
-        with RunReader(src) as reader:
-            return reader.events()
-    except (OSError, KeyError, ValueError):
-        return []
-
-
 def _event_mask(run: MeasuredRun, events: list[RunEvent]) -> dict[str, np.ndarray]:
     """Over-range samples per probe from a run file's events ({} for CSV or no events)."""
     t = run.t_s
@@ -162,11 +148,11 @@ def probe_range(run: MeasuredRun, delta_measured: bool | None = None) -> ProbeRa
     n = run.n_samples
     if delta_measured is False:
         return ProbeRange(np.zeros(n, dtype=bool), {}, {}, PROBES, "rig.delta_measured: no")
-    events = _file_events(run)
+    events = record_events(run)
     from_events = _event_mask(run, events)
     valid = np.ones(n, dtype=bool)
-    for moving in moving_masks(run.t_s, events).values():
-        valid &= ~moving  # a probe's mount moving (re-centring): no delta read there
+    for moving in unsteady_windows(run, events).values():
+        valid &= ~moving  # a mount moved across a slip (re-centring): no delta read there
     frac: dict[str, float] = {}
     source: dict[str, str] = {}
     constant = tuple(p for p in PROBES if not_measured(getattr(run, p)))

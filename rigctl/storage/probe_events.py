@@ -1,8 +1,8 @@
 """The ``probe_recentre`` event: a probe's mount moved during a run, when, for how long, by how much.
 
 Written by the protocols' re-centring (:mod:`experiments.recentre`) into the run file's event table
-(docs/run-file.md), read by the analysis to stitch delta across the move and to leave the samples
-of the move itself out (:mod:`rigctl.analysis.delta_stitch`). One format, declared here::
+(docs/run-file.md), read by every reader of a run file to stitch delta across the move
+(:mod:`rigctl.records.delta_stitch`). One format, declared here::
 
     <column>: mount moved <+-um> um at <t0> s in <duration> s (reading <+-um> -> <+-um> um)
 
@@ -12,8 +12,8 @@ the recorded time axis) and ``duration`` bound the samples during which the moun
 ``t0`` it had not started, after ``t0 + duration`` it had arrived. The move is ``nan`` when its size
 is not known (an operator's re-centring), a reading ``nan`` when it was not known (over range).
 A message without ``at ... in ...`` (older run files) states no window. :func:`moving_masks` gives
-the samples recorded while a mount was moving, which no delta is read from
-(:mod:`rigctl.records.probe_range`).
+the samples recorded while a mount was moving (bridged by the stitching, and left out of delta
+where the specimen was not steady across the move: :mod:`rigctl.records.delta_stitch`).
 """
 
 from __future__ import annotations
