@@ -17,6 +17,7 @@ from typing import Any
 from rigctl.data import MeasuredRun
 from rigctl.model import SimResult
 from rigctl.records.dataset import Dataset, prepare_dataset, protocols_present
+from rigctl.records.delta_stitch import stitch_record
 from rigctl.records.feature_info import FEATURES
 from rigctl.records.image_features import model_ratios
 from rigctl.workbench.evaluate import Evaluation, evaluate
@@ -125,7 +126,10 @@ def compare(
     ``workers`` > 1: on another rig's data the fit's two starts go to two worker processes
     (:func:`~rigctl.workbench.fitting.identify_model`)."""
     say = progress or (lambda _m: None)
-    ds = dataset or prepare_dataset(list(runs))
+    # the probes' readings stitched across their mounts' re-centrings, for the report's figures
+    # as for the dataset (rigctl.records.delta_stitch; a stitched run is not stitched again)
+    runs = [stitch_record(r) for r in runs]
+    ds = dataset or prepare_dataset(runs)
     if identify:
         say(f"identifying {choice.label()} on {ds.n_events} slip events ...")
         fit = identify_model(ds, choice, workers=workers)

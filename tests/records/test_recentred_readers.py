@@ -100,3 +100,17 @@ def test_the_analysis_reads_the_same_slips(record) -> None:
     assert STITCHED_KEY in src.run.metadata
     np.testing.assert_allclose(prepare_run(src.run, "x").events.features["lag_m"],
                                prepare_run(run, "x").events.features["lag_m"], atol=0.2e-6)
+
+
+def test_the_comparison_s_figures_read_the_stitched_runs(record) -> None:
+    """``compare`` keeps the runs its report draws (the Ft-delta loops): stitched, as the dataset
+    it scores is, not the readings with the mount's jumps."""
+    from rigctl.workbench.compare import compare
+    from rigctl.workbench.model_choice import ModelChoice
+
+    run, path, _starts = record
+    cmp = compare(load_runs([path]), ModelChoice("paper").with_values(TRUTH), identify=False)
+    (shown,) = cmp.runs
+    assert STITCHED_KEY in shown.metadata
+    drawn = shown.d1_m - shown.d2_m
+    np.testing.assert_allclose(drawn, run.d1_m - run.d2_m, atol=0.5e-6)  # the record, no jumps
