@@ -10,19 +10,30 @@ of the base, then ``fitting.fit_candidate`` of the effect on it) and by the new 
 (``search.search_model`` of ``paper`` + effect from the preset). Each prints the error reached, the
 generating model's own error on the same data, the evaluations and the wall seconds. Nothing
 asserts: the figures are for the report (issue 34).
+
+**Evaluations are counted the same way for both**: every simulation of a model on the data (every
+call of :func:`rigctl.workbench.evaluate.evaluate`: starts, mass scans, ratio guesses, candidate
+scans, Gauss-Newton walks, fits, Jacobians, the final evaluations and the uncertainties), in this
+process and in the worker processes it forks (:class:`EvaluationCounter`). The figures the two
+report themselves (``FitResult.n_evaluations``) leave some out (the old chain's scans, starts and
+guesses; its second start's fit) and are printed beside them.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import multiprocessing
 import sys
 import time
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
 
+import rigctl.workbench.evaluate as evaluate_module
 from benchmarks.bench_other_rigs import HIDEABLE, MIN_EVENTS, NOISE_FACTOR_RANGE, RATE_RANGE_HZ, draw_rig
 from benchmarks.bench_other_rigs import _campaign as campaign
 from benchmarks.bench_other_rigs import _log_uniform as log_uniform
@@ -59,22 +70,67 @@ def draw_case(i: int, seed: int) -> tuple[Dataset, ModelChoice, tuple[str, ...]]
     raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
 
 
-def _old(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, Any]:
+class EvaluationCounter:
+    """Counts the simulations of a model on the data while it is entered: every call of
+    ``evaluate`` through any ``rigctl`` module that imported it, here and in forked workers (the
+    count lives in shared memory; the workbench's pools fork where the platform can)."""
+
+    def __init__(self) -> None:
+        self._count: Any = multiprocessing.get_context("fork").Value("q", 0)
+
+    @property
+    def value(self) -> int:
+        return int(self._count.value)
+
+    @contextlib.contextmanager
+    def counting(self) -> Iterator[None]:
+        original = evaluate_module.evaluate
+        count = self._count
+
+        def counted(*args: Any, **kwargs: Any) -> Any:
+            with count.get_lock():
+                count.value += 1
+            return original(*args, **kwargs)
+
+        patched = [m for name, m in list(sys.modules.items()) if name.startswith("rigctl")
+                   and getattr(m, "evaluate", None) is original]
+        for m in patched:
+            m.evaluate = counted  # type: ignore[attr-defined]
+        try:
+            yield
+        finally:
+            for m in patched:
+                m.evaluate = original  # type: ignore[attr-defined]
+
+
+def _counted(fn: Callable[[], Any]) -> tuple[Any, int, float]:
+    """``fn()``, the simulations it ran and its wall seconds."""
+    counter = EvaluationCounter()
     t0 = time.perf_counter()
-    base = identify_model(dataset, ModelChoice("paper"), with_uncertainty=not hidden,
-                          workers=workers)
-    res, n = base, base.n_evaluations
-    if hidden:
-        res = fit_candidate(CandidateTask(dataset, base, hidden[0]), with_uncertainty=True)
-        n += res.n_evaluations
-    return {"error": res.error, "evaluations": n, "wall_s": time.perf_counter() - t0}
+    with counter.counting():
+        out = fn()
+    return out, counter.value, time.perf_counter() - t0
+
+
+def _old(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, Any]:
+    def chain() -> tuple[Any, int]:
+        base = identify_model(dataset, ModelChoice("paper"), with_uncertainty=not hidden,
+                              workers=workers)
+        res, n = base, base.n_evaluations
+        if hidden:
+            res = fit_candidate(CandidateTask(dataset, base, hidden[0]), with_uncertainty=True)
+            n += res.n_evaluations
+        return res, n
+
+    (res, reported), n, wall = _counted(chain)
+    return {"error": res.error, "evaluations": n, "reported": reported, "wall_s": wall}
 
 
 def _new(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, Any]:
-    t0 = time.perf_counter()
-    res = search_model(dataset, ModelChoice("paper", hidden), workers=workers)
-    return {"error": res.error, "evaluations": res.n_evaluations,
-            "wall_s": time.perf_counter() - t0}
+    res, n, wall = _counted(lambda: search_model(dataset, ModelChoice("paper", hidden),
+                                                 workers=workers))
+    return {"error": res.error, "evaluations": n, "reported": res.n_evaluations,
+            "message": res.message, "wall_s": wall}
 
 
 def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
@@ -107,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
             with open(args.jsonl, "a", encoding="utf-8") as fh:
                 fh.write(line + "\n")
     print(f"{'case':>6} {'hidden':<24} {'truth':>7} {'old E':>7} {'new E':>7} {'old n':>6} "
-          f"{'new n':>6} {'old s':>7} {'new s':>7}")
+          f"{'new n':>6} {'old s':>7} {'new s':>7}  (n: every simulation, counted alike)")
     for r in rows:
         o, n = r["old"], r["new"]
         print(f"{r['seed']}/{r['case']:<4} {','.join(r['hidden']) or '-':<24} "

@@ -9,25 +9,32 @@ search".)
    to a resolved ringing by :class:`~rigctl.workbench.identify.Objective` is no coordinate), and
    log2 of the element count where an effect spreads the elements' thresholds; each coordinate with
    an initial standard deviation, a quarter of where its optimum is expected.
-2. **Starts**: the model's current values and the same at the data's scale
-   (:func:`~rigctl.workbench.fitting.data_scaled`); from the better, the effects switched off and
-   Sobol points (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an
-   effect whose influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope
-   there to follow). The best start is the mean of the first CMA-ES population.
-3. **Global stage: CMA-ES** (``cma``, Hansen & Ostermeier 2001; IPOP/BIPOP restarts, Auger & Hansen
-   2005, Hansen 2009). Why: it is invariant to scaling and rotation of the internal coordinates
-   (the stiffness split, mass and friction levels are strongly correlated); it uses only the rank
-   of the costs, so it is robust on the piecewise-constant, slightly noisy objective that event
-   features make (a slip gained or lost is a step); it has few settings, all derived below; and it
-   is at its best at 3-20 dimensions, where this search lives. Differential evolution needs
-   populations of 10-15 times the dimension (ten times the evaluations per generation);
-   basinhopping assumes smooth local minima a local method can descend. The objective is |r|^2 of
-   :class:`~rigctl.workbench.identify.Objective`'s residual vector; a point whose model misses most
-   measured slips ranks after every point that does not, and one that cannot be run after both,
-   so the trap (a flat error no step leaves) is never the answer while another point exists.
-4. **Polish**: bounded least squares (:func:`~rigctl.workbench.identify.least_squares_fit`) from
-   the best point with what is left of the budget, then the uncertainties
-   (:func:`~rigctl.workbench.identify.with_uncertainties`), as ``identify_model`` reports them.
+2. **Starts**: the model's current values, the same at the data's scale
+   (:func:`~rigctl.workbench.fitting.data_scaled`) and the ratio guess
+   (:mod:`rigctl.workbench.guess`); from the best, every effect off and Sobol points
+   (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an effect whose
+   influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope there to
+   follow), the damping following the mass (:class:`~rigctl.workbench.search_space.SearchSpace`).
+3. **Metric** (:meth:`_Search.metric`): one Jacobian J at the best start, the Gauss-Newton
+   metric of the least-squares problem; the starts ranked by the cost their damped Gauss-Newton
+   step would reach under J, the best steps evaluated; CMA-ES's initial covariance from J^T J.
+4. **Global stage: CMA-ES** (``cma``, Hansen & Ostermeier 2001; Hansen, *The CMA Evolution
+   Strategy: A Tutorial*, 2016) in the coordinates that whiten that covariance. Why: it is
+   invariant to linear maps of the internal coordinates (the stiffness split, mass and friction
+   levels are strongly correlated); it uses only the rank of the costs, so it is robust on the
+   piecewise-constant, slightly noisy objective that event features make (a slip gained or lost
+   is a step); it has few settings, all derived below; and it is at its best at 3-20
+   dimensions, where this search lives. Differential evolution needs populations of 10-15 times
+   the dimension; basinhopping assumes smooth local minima a local method can descend. The
+   objective is |r|^2 of :class:`~rigctl.workbench.identify.Objective`'s residual vector; a
+   point whose model misses most measured slips ranks after every point that does not, and one
+   that cannot be run after both, so the trap (a flat error no step leaves) is never the answer
+   while another point exists. It ends when its best cost stops falling by more than the
+   scatter (TOL_COST).
+5. **Polish**: bounded least squares (scipy's trust-region reflective) from the best point, its
+   Jacobians' columns evaluated in parallel, until a step gains less than the scatter; then the
+   answer's uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`), as
+   ``identify_model`` reports them.
 
 The population is evaluated in parallel worker processes holding the dataset once
 (:mod:`rigctl.workbench.search_pool`). One :class:`~rigctl.workbench.budget.Budget` bounds
@@ -42,8 +49,10 @@ from dataclasses import replace
 
 import cma
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.stats import qmc
 
+from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset
 from rigctl.records.rig_description import check_names
@@ -51,10 +60,13 @@ from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.fitting import data_scaled
+from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
     FAILED_FACTOR,
     FAILED_RESIDUAL,
+    FD_STEP,
     FitResult,
+    _next_step,
     fn_range,
     free_params,
     physically_valid,
@@ -62,37 +74,38 @@ from rigctl.workbench.identify import (
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.search_pool import (
+    FAILED,
     OK,
     TRAPPED,
     EvaluationPool,
+    FinishTask,
     Outcome,
-    PolishTask,
 )
 from rigctl.workbench.search_space import SearchSpace, build_space
 
 MIN_GENERATIONS = 10
-"""Default budget: at least this many CMA-ES generations. In a basin the step size shrinks by
-about a factor e every few generations (its cumulation time is about (n + mu_eff) / mu_eff,
-Hansen 2016, table 1), so ten take the spread from a quarter of a plausible range down to the
-polish's scale (TOL_X)."""
+"""Default budget, a cap the search rarely reaches (it ends where it stops gaining): at least this
+many CMA-ES generations. In a basin the step size shrinks by about a factor e every few
+generations (its cumulation time is about (n + mu_eff) / mu_eff, Hansen 2016, table 1), so ten
+take the spread from a quarter of a plausible range down to the polish's scale."""
 GENERATIONS_PER_DIM = 2
-"""... and this many more per dimension: 2n generations let the step size and the main
-correlations (stiffness split, mass, friction levels) adapt; learning the full covariance would
-take about n^2 / mu_eff generations, and the polish's Jacobian does that locally instead."""
+"""... and this many more per dimension: 2n generations let the step size and the correlations
+the one Jacobian of the start misjudged adapt."""
 POLISH_ITERATIONS = 4
-"""Trust-region iterations kept for the polish: from a point in the basin Gauss-Newton converges
-in a few steps."""
+"""Gauss-Newton iterations kept for the polish when the global stage ends on the budget: from a
+point in the basin Gauss-Newton converges in a few steps."""
 TOL_COST = 1.0
-"""CMA-ES stops once the population's costs differ by less than this: |r|^2 is in squared scatter
-units, and one squared scatter unit is one feature moved by its own scatter, below what the data
-resolve."""
-TOL_X = 0.05
-"""CMA-ES stops once its spread is below this in every internal coordinate (5 % of a parameter,
-the polish's own first finite-difference step, identify.FD_STEP): below it the local least
-squares converges faster than a population."""
-MAX_RESTARTS = 9
-"""Restarts CMA-ES may make within the budget (cma's default number when restarts are asked for):
-the budget, not this, ends them."""
+"""A change of the cost |r|^2 smaller than this is not a gain. |r|^2 is in squared scatter units
+(each feature's block z values weighted so that |r|^2 = n_features x E^2), and one squared unit
+is one feature moved by its own scatter: below what the data resolve. CMA-ES stops once the best
+cost has not fallen by this much for STALL generations (or its population's costs differ by less,
+cma's ``tolfun``); the polish stops once a Gauss-Newton step gains less."""
+FD_TRIES = 3
+"""Forward differences tried per Jacobian column at most: identify's adaptive rule (its step
+grows or shrinks until the residual moves by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units)."""
+METRIC_QUANTILE = 0.25
+"""CMA-ES's initial standard deviation along each direction is this fraction of the interval where
+the optimum is expected (Hansen 2016, appendix B: sigma0 about a quarter of the search interval)."""
 
 
 def search_model(
@@ -106,9 +119,10 @@ def search_model(
 ) -> FitResult:
     """Identify ``choice`` on ``dataset`` by the one search (module docstring).
 
-    ``budget``: evaluations and/or seconds (default: :func:`default_budget`); ``workers``: worker
-    processes evaluating a population (default: the CPUs; 0 evaluates in this process).
-    Raises :class:`~rigctl.workbench.budget.SearchCancelledError` when the budget is cancelled."""
+    ``budget``: evaluations and/or seconds (default: :func:`default_budget`, a cap: the search
+    ends where it stops gaining); ``workers``: worker processes evaluating a batch of points
+    (default: the CPUs; 0 evaluates in this process). Raises
+    :class:`~rigctl.workbench.budget.SearchCancelledError` when the budget is cancelled."""
     t0, c0 = time.perf_counter(), time.process_time()
     rig = dataset.rig
     check_names(rig, [p.name for p in choice.parameter_table()])
@@ -122,179 +136,413 @@ def search_model(
     budget = budget or default_budget(space.dim)
     n_workers = default_workers() if workers is None else workers
     with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
-        search = _Search(space, pool, budget, seed)
+        search = _Search(space, pool, budget, seed, with_uncertainty)
         search.starts([choice, *([scaled] if scaled is not None else [])])
-        search.cma(reserve=polish_reserve(len(space.free), with_uncertainty))
-        result = search.polish(choice, with_uncertainty)
+        search.metric()
+        search.cma()
+        search.polish()
+        result = search.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
                    cpu_s=time.process_time() - c0)
 
 
 def default_budget(dim: int) -> Budget:
-    """Evaluations for MIN_GENERATIONS + GENERATIONS_PER_DIM x ``dim`` CMA-ES generations of the
-    default population, the starts (about one population), the probes (2 ``dim``), the polish
-    and the uncertainties."""
+    """A cap: evaluations for MIN_GENERATIONS + GENERATIONS_PER_DIM x ``dim`` CMA-ES generations
+    of the default population, the starts (about one population), the start's Jacobian, the
+    polish and the uncertainties, each Jacobian at its worst (FD_TRIES per column)."""
     generations = MIN_GENERATIONS + GENERATIONS_PER_DIM * dim + 1
-    return Budget(max_evaluations=generations * popsize(dim) + 2 * dim
-                  + polish_reserve(dim, True))
+    return Budget(max_evaluations=generations * popsize(dim) + FD_TRIES * dim + 2
+                  + polish_reserve(dim, True, FD_TRIES * dim))
 
 
 def popsize(dim: int) -> int:
     """CMA-ES's default population, 4 + floor(3 ln n): the smallest that estimates the covariance
-    update reliably (Hansen 2016, table 1); IPOP/BIPOP restarts enlarge it where the landscape
-    is multimodal."""
+    update reliably (Hansen 2016, table 1)."""
     return 4 + int(3.0 * math.log(max(dim, 1)))
 
 
-def jacobian_cost(n: int) -> int:
-    """Evaluations of one finite-difference Jacobian of ``n`` parameters, at most: identify's
-    adaptive forward difference tries up to three steps per column."""
-    return 3 * n
+def stall_generations(dim: int, mueff: float) -> int:
+    """Generations without a gain after which CMA-ES has stopped finding one: the backward time
+    horizon 1 / c_sigma of its step-size path, c_sigma = (mu_eff + 2) / (n + mu_eff + 5) (Hansen
+    2016, eq. 55): over that many generations the step size has adapted to the landscape, so a
+    population that still gains nothing above the scatter (TOL_COST) is sampling noise."""
+    return math.ceil((dim + mueff + 5.0) / (mueff + 2.0))
 
 
-def polish_reserve(n: int, with_uncertainty: bool) -> int:
+def polish_reserve(n: int, with_uncertainty: bool, jacobian: int) -> int:
     """Evaluations kept from the global stage for POLISH_ITERATIONS of the polish (each one
-    residual and one Jacobian at most), its final evaluation, and the uncertainties' Jacobian."""
-    return POLISH_ITERATIONS * (1 + jacobian_cost(n)) + 1 \
-        + (jacobian_cost(n) if with_uncertainty else 0)
+    residual and one Jacobian of ``jacobian`` evaluations), the answer's final evaluation and
+    its uncertainties' Jacobian."""
+    return POLISH_ITERATIONS * (1 + jacobian) + 1 + (jacobian if with_uncertainty else 0)
+
+
+class _ConvergedError(Exception):
+    """The polish's last step gained less than TOL_COST, or the budget cannot pay its next
+    Jacobian: it ends at the best point seen."""
 
 
 class _Search:
-    """The state of one search: the best point seen and how each evaluated point ranks."""
+    """The state of one search: the best point seen, how each evaluated point ranks, and what a
+    Jacobian costs here."""
 
-    def __init__(self, space: SearchSpace, pool: EvaluationPool, budget: Budget,
-                 seed: int) -> None:
+    def __init__(self, space: SearchSpace, pool: EvaluationPool, budget: Budget, seed: int,
+                 with_uncertainty: bool) -> None:
         self.space, self.pool, self.budget, self.seed = space, pool, budget, seed
-        self.best: tuple[float, FloatArray] | None = None
-        """Lowest cost of a point whose model makes the slips, and that point."""
-        self.best_any: tuple[float, FloatArray] | None = None
+        self.with_uncertainty = with_uncertainty
+        self.best: tuple[float, FloatArray, FloatArray] | None = None
+        """Lowest cost of a point whose model makes the slips, that point and its residual."""
+        self.best_any: tuple[float, FloatArray, FloatArray | None] | None = None
         """The best point by rank (trapped or failed too): the answer only where no point makes
         the slips."""
         self.failed_cost = FAILED_RESIDUAL**2
         self.stop_reason = ""
+        self.cols = list(range(len(space.free)))
+        """The coordinates differenced: all but the element count (an integer: no slope)."""
+        self.steps: dict[int, float] = {}
+        """Each column's finite-difference step as last adapted."""
+        self.jac_evaluations = 0
+        self.jac_columns = 0
+        self.mean: FloatArray | None = None
+        self.cov: FloatArray | None = None
+        self.metric_cost = math.nan
+        self.stages: list[str] = []
+        """What each stage spent, for the result's message."""
+        self.start_points: list[tuple[FloatArray, FloatArray]] = []
+        """The starts that can be run, and their residual vectors."""
 
-    def rank(self, xs: list[FloatArray]) -> list[float]:
-        """Evaluate ``xs`` and give each its ranked cost: |r|^2 where the model makes the slips;
-        after all of those the points that miss most slips (by their |r|^2), then the points that
-        cannot be run (the failure penalty of identify.Objective, FAILED_FACTOR times the first
-        valid norm)."""
+    # -- evaluation ---------------------------------------------------------------------------
+
+    def evaluate(self, xs: list[FloatArray]) -> list[Outcome]:
+        """Evaluate ``xs`` (clipped to the bounds) and keep the best point seen."""
+        xs = [np.clip(x, self.space.lower, self.space.upper) for x in xs]
         outcomes: list[Outcome] = self.pool.evaluate([self.space.point(x) for x in xs])
         if self.best is None and any(o.status == OK for o in outcomes):
             first = next(o.cost for o in outcomes if o.status == OK)
             self.failed_cost = max(FAILED_RESIDUAL, FAILED_FACTOR * math.sqrt(first))**2
-        ranked = []
         for x, o in zip(xs, outcomes, strict=True):
-            if o.status == OK:
-                f = o.cost
-                if self.best is None or f < self.best[0]:
-                    self.best = (f, np.array(x))
-            elif o.status == TRAPPED:
-                f = self.failed_cost + min(o.cost, self.failed_cost)
-            else:
-                f = 3.0 * self.failed_cost
+            if o.status == OK and o.vector is not None and (self.best is None
+                                                            or o.cost < self.best[0]):
+                self.best = (o.cost, np.array(x), o.vector)
+            f = self.ranked_cost(o)
             if self.best_any is None or f < self.best_any[0]:
-                self.best_any = (f, np.array(x))
-            ranked.append(f)
-        return ranked
+                self.best_any = (f, np.array(x), o.vector)
+        return outcomes
+
+    def ranked_cost(self, o: Outcome) -> float:
+        """|r|^2 where the model makes the slips; after all of those the points that miss most
+        slips (by their |r|^2), then the points that cannot be run (the failure penalty of
+        identify.Objective, FAILED_FACTOR times the first valid norm)."""
+        if o.status == OK:
+            return o.cost
+        if o.status == TRAPPED:
+            return self.failed_cost + min(o.cost, self.failed_cost)
+        return 3.0 * self.failed_cost
+
+    def rank_starts(self, xs: list[FloatArray]) -> None:
+        """Evaluate starts, keeping those that can be run, with their residuals."""
+        for x, o in zip(xs, self.evaluate(xs), strict=True):
+            if o.status != FAILED and o.vector is not None:
+                self.start_points.append((np.clip(x, self.space.lower, self.space.upper),
+                                          o.vector))
+
+    def rank(self, xs: list[FloatArray]) -> list[float]:
+        """Each point's ranked cost (:meth:`ranked_cost`)."""
+        return [self.ranked_cost(o) for o in self.evaluate(xs)]
 
     @property
     def x_best(self) -> FloatArray:
-        pick = self.best or self.best_any
-        assert pick is not None
-        return pick[1]
+        if self.best is not None:
+            return self.best[1]
+        assert self.best_any is not None
+        return self.best_any[1]
+
+    @property
+    def residual_best(self) -> tuple[FloatArray, FloatArray] | None:
+        """The best point and its residual vector: of a point whose model makes the slips, else
+        of the best by rank (a model that misses most slips still has a residual to descend)."""
+        if self.best is not None:
+            return self.best[1], self.best[2]
+        if self.best_any is not None and self.best_any[2] is not None:
+            return self.best_any[1], self.best_any[2]
+        return None
+
+    @property
+    def cost_best(self) -> float:
+        if self.best is not None:
+            return self.best[0]
+        return self.best_any[0] if self.best_any is not None else math.inf
+
+    def jacobian_cost(self) -> int:
+        """Evaluations a Jacobian of all columns costs: as measured in this search so far, else
+        the worst case (FD_TRIES per column)."""
+        per_column = self.jac_evaluations / self.jac_columns if self.jac_columns else FD_TRIES
+        return math.ceil(per_column * len(self.cols))
+
+    def reserve(self) -> int:
+        """Evaluations the polish and the answer keep from the global stage."""
+        return polish_reserve(len(self.cols), self.with_uncertainty, self.jacobian_cost())
+
+    def jacobian(self, x0: FloatArray, f0: FloatArray) -> FloatArray:
+        """The residual's forward-difference Jacobian at ``x0`` (columns :attr:`cols`), each
+        column's step adapted as identify's solver adapts it (identify._next_step: until the
+        residual moves by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units, at most FD_TRIES steps), and
+        every column of a round evaluated in one batch. A step into a point that cannot be run
+        is taken the other way; a column with no usable step is zero."""
+        J = np.zeros((f0.shape[0], self.space.dim))
+        size = {j: self.steps.get(j, FD_STEP) for j in self.cols}
+        sign = {j: 1.0 for j in self.cols}
+        pending = list(self.cols)
+        for _ in range(FD_TRIES):
+            if not pending:
+                break
+            xs, hs = [], []
+            for j in pending:
+                h = sign[j] * size[j]
+                if not self.space.lower[j] <= x0[j] + h <= self.space.upper[j]:
+                    h = -h
+                x = x0.copy()
+                x[j] += h
+                xs.append(x)
+                hs.append(h)
+            outcomes = self.evaluate(xs)
+            self.jac_evaluations += len(xs)
+            again = []
+            for j, h, o in zip(pending, hs, outcomes, strict=True):
+                if o.status == FAILED or o.vector is None:
+                    if sign[j] > 0.0:  # the other side, once
+                        sign[j] = -1.0
+                        again.append(j)
+                    continue
+                diff = o.vector - f0
+                J[:, j] = diff / h
+                nxt = _next_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
+                if nxt is not None:
+                    size[j] = nxt
+                    again.append(j)
+            pending = again
+        self.steps.update(size)
+        self.jac_columns += len(self.cols)
+        return J
+
+    # -- stages -------------------------------------------------------------------------------
 
     def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; from the better, the effects off and
-        Sobol points over their plausible ranges (as many as a population, rounded up to a power
-        of two to keep the Sobol sequence balanced)."""
-        self.rank([self.space.vector(c) for c in choices])
-        if not self.space.spread:
-            return
-        x0 = self.x_best
-        idx = sorted(self.space.spread)
-        m = max(1, math.ceil(math.log2(popsize(self.space.dim))))
-        unit = qmc.Sobol(d=len(idx), scramble=True, seed=self.seed).random_base2(m)
-        lo = np.array([self.space.spread[i][0] for i in idx])
-        hi = np.array([self.space.spread[i][1] for i in idx])
-        points = []
-        for row in [np.zeros(len(idx)), *unit]:  # the zero row: each effect at its off end
-            x = x0.copy()
-            x[idx] = lo + row * (hi - lo)
-            points.append(x)
-        self.rank(points)
+        """The model's values and its data-scale start; from the better, every effect off, and
+        Sobol points over the plausible ranges of the coordinates whose start is a guess (as many
+        as a population, rounded up to a power of two to keep the Sobol sequence balanced)."""
+        used = self.budget.used
+        self.rank_starts([self.space.vector(c) for c in choices])
+        guess = self.ratio_guess(choices[0])
+        if guess is not None:
+            self.rank_starts([guess])
+        if self.space.spread:
+            x0 = self.x_best
+            points = []
+            if self.space.off:
+                off = x0.copy()
+                for i, u in self.space.off.items():
+                    off[i] = u
+                points.append(off)
+            idx = sorted(self.space.spread)
+            m = max(1, math.ceil(math.log2(popsize(self.space.dim))))
+            unit = qmc.Sobol(d=len(idx), scramble=True, seed=self.seed).random_base2(m)
+            lo = np.array([self.space.spread[i][0] for i in idx])
+            hi = np.array([self.space.spread[i][1] for i in idx])
+            for row in unit:
+                points.append(self.space.spread_point(
+                    x0, dict(zip(idx, lo + row * (hi - lo), strict=True))))
+            self.rank_starts(points)
+        self.stages.append(f"starts {self.budget.used - used}")
         self.budget.report(f"starts: {self.budget.used} evaluated")
 
-    def scaled_std(self) -> FloatArray:
-        """Each coordinate's initial standard deviation, shrunk to the data's sensitivity.
+    def ratio_guess(self, choice: ModelChoice) -> FloatArray | None:
+        """The ratio guess of :mod:`rigctl.workbench.guess` from the best start: each level and
+        stiffness rescaled by the ratio of the measured to the simulated feature it mainly sets
+        (one simulation, counted). A start at the data's levels that misses most slips is not
+        left to a cost that is flat there."""
+        names = [fp.name for fp in self.space.free]
+        model = choice.with_values({k: v for k, v in self.space.values(self.x_best).items()
+                                    if k in names})
+        self.budget.check()
+        try:
+            values = initial_guess(self.pool.dataset, model, list(self.space.free))
+        except (SimulationError, ParameterError):
+            return None
+        finally:
+            self.budget.spend(1)
+        if not values:
+            return None
+        x = self.x_best.copy()
+        for i, fp in enumerate(self.space.free):
+            if fp.name in values and math.isfinite(values[fp.name]):
+                x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
+        return x
 
-        The space's standard deviations say where the optimum may lie; the data may pin a
-        coordinate far more tightly (a friction level read from the peaks). Each coordinate is
-        probed one deviation either side of the best start (one batch, 2n evaluations); where the
-        cost rises by more than its own value there, the deviation is shrunk to where a
-        quadratic through the probes rises by that much, sqrt(f0 / rise) of it: the variables
-        scaled to similar sensitivity, as CMA-ES asks (Hansen 2016, appendix B). Never below
-        TOL_X (a smaller spread is the polish's business)."""
-        x0, std = self.x_best, self.space.std.copy()
-        dim = self.space.dim
-        if not self.best or self.budget.evaluations_left() < 2 * dim:
-            return std
-        f0 = self.best[0]
-        probes = [np.clip(x0 + s * std[i] * np.eye(dim)[i], self.space.lower, self.space.upper)
-                  for i in range(dim) for s in (-1.0, 1.0)]
-        f = self.rank(probes)
-        for i in range(dim):
-            rise = max(f[2 * i], f[2 * i + 1]) - f0
-            if rise > f0 > 0.0:
-                std[i] = max(std[i] * math.sqrt(f0 / rise), TOL_X)
-        return std
+    def metric(self) -> None:
+        """One Jacobian J at the best start: the local metric of the least-squares problem.
 
-    def cma(self, reserve: int) -> None:
-        """CMA-ES from the best start with IPOP/BIPOP restarts while the budget lasts."""
-        std = self.scaled_std()
-        x0 = np.clip(self.x_best, self.space.lower, self.space.upper)
-        lam = popsize(self.space.dim)
-
-        def out_of_budget(es: cma.CMAEvolutionStrategy) -> bool:
-            return bool(self.budget.evaluations_left() - reserve < es.popsize)
-
-        def progress(es: cma.CMAEvolutionStrategy) -> None:
-            best = self.best[0] if self.best is not None else math.inf
-            self.budget.report(f"global search: generation {es.countiter}, population "
-                               f"{es.popsize}, best |r|^2 {best:.4g}")
-
-        if self.budget.evaluations_left() - reserve < lam:
-            self.stop_reason = "no budget left for a population"
+        A start's own cost says little of where a fit from it ends (it is dominated by levels and
+        stiffnesses a first step corrects), so every start r_k is ranked by the cost its
+        Gauss-Newton step would reach under J, |r_k + J d_k|^2 + d_k^T S^-1 d_k, the step taken
+        with the prior (each coordinate's standard deviation s from the space: where its optimum
+        is expected) as Levenberg-Marquardt damping, (J^T J + S^-1) d_k = -J^T r_k (the fitting
+        chain's scan ranked its points the same way). The steps of the mu best predicted (mu =
+        lambda / 2, as CMA-ES selects its parents) are evaluated, one batch. From the best point
+        then (cost f) the optimum of the linearised problem lies where its cost is at most f,
+        d^T J^T J d <= f, so CMA-ES starts with a covariance of METRIC_QUANTILE^2 f (J^T J)^-1
+        there (a quarter of that interval per direction, as CMA-ES's sigma0 rule asks), combined
+        with the prior by adding precisions: C^-1 = S^-1 + J^T J / (METRIC_QUANTILE^2 f). A
+        direction the data do not move keeps its prior spread. This replaces learning the
+        covariance from scratch, about n^2 / mu_eff generations (Hansen 2016, table 1)."""
+        prior_cov = self.space.prior_cov()
+        prior = np.linalg.inv(prior_cov)
+        self.mean, self.cov = self.x_best.copy(), prior_cov
+        at = self.residual_best
+        if at is None or self.budget.evaluations_left() - self.reserve() < \
+                FD_TRIES * len(self.cols) + popsize(self.space.dim) // 2:
             return
-        opts = {
-            "bounds": [list(self.space.lower), list(self.space.upper)],
-            "CMA_stds": list(std), "popsize": lam, "tolfun": TOL_COST,
-            "tolx": TOL_X, "seed": self.seed, "verbose": -9, "verb_log": 0, "verb_disp": 0,
-            "termination_callback": [out_of_budget], "signals_filename": "",
-            "eval_final_mean": False,
-        }
-        _, es = cma.fmin2(None, x0, 1.0, opts, restarts=MAX_RESTARTS, bipop=True,
-                          parallel_objective=self.rank, callback=progress,
-                          eval_initial_x=False)
-        self.stop_reason = ", ".join(sorted(es.stop())) or "budget"
+        used = self.budget.used
+        x0, r0 = at
+        J = self.jacobian(x0, r0)
+        jtj = J.T @ J
+        if np.all(np.isfinite(jtj)):
+            solve = np.linalg.inv(jtj + prior)
+            predicted = []
+            for x, r in self.start_points:
+                d = -solve @ (J.T @ r)
+                rd = r + J @ d
+                predicted.append((float(rd @ rd + d @ prior @ d), x + d))
+            predicted.sort(key=lambda p: p[0])
+            self.rank([x for _, x in predicted[:max(popsize(self.space.dim) // 2, 1)]])
+            f = max(self.cost_best, TOL_COST)
+            precision = prior + jtj / (METRIC_QUANTILE**2 * f)
+            self.mean = self.x_best.copy()
+            self.cov = np.asarray(np.linalg.inv(precision), dtype=np.float64)
+            self.metric_cost = f
+        self.stages.append(f"Jacobian and Gauss-Newton steps {self.budget.used - used}")
+        self.budget.report(f"metric: best |r|^2 {self.cost_best:.4g}")
 
-    def polish(self, choice: ModelChoice, with_uncertainty: bool) -> FitResult:
-        """The local least-squares fit from the best point with what is left of the budget (as
-        many iterations as it surely pays for; none where it pays for none: the best point is
-        then evaluated as it is)."""
-        values = self.space.values(self.x_best)
-        n = len(self.space.free)
-        model = choice
-        if "n_elements" in values:
-            model = choice.with_values({"n_elements": values.pop("n_elements")})
-        free = self.space.free
-        left = self.budget.evaluations_left() - 1 - (jacobian_cost(n) if with_uncertainty else 0)
-        max_nfev = int(min(left, 1e6) // (1 + jacobian_cost(n)))
-        if max_nfev < 1:
-            model, free, with_uncertainty = model.with_values(values), (), False
-            max_nfev = 1
+    def cma(self) -> None:
+        """CMA-ES from the best point with the metric's covariance, while it gains.
+
+        It runs in whitened coordinates y, x = m + L y with L L^T the covariance of
+        :meth:`metric` (CMA-ES is invariant under this linear map, Hansen 2016, sec. 1.4: starting
+        it with identity in y is starting it with that covariance in x). A point outside the
+        bounds is evaluated at its projection onto them, its cost raised by the metric's
+        quadratic rise over the distance projected, f / 4 per squared unit of y (the box
+        handling by projection and penalty, Hansen 2016, appendix B). Ends when the best cost
+        has not fallen by TOL_COST for :func:`stall_generations` generations, at cma's own
+        stops, or when the budget left would not pay for a population and the polish."""
+        dim = self.space.dim
+        if dim < 2 or self.mean is None or self.cov is None:
+            self.stop_reason = "one coordinate: no global stage"
+            return
+        used = self.budget.used
+        lam = popsize(dim)
+        L = np.linalg.cholesky(self.cov)
+        L_inv = np.linalg.inv(L)
+        m = self.mean
+        weight = METRIC_QUANTILE**2 * (self.metric_cost if math.isfinite(self.metric_cost)
+                                       else max(self.cost_best, TOL_COST))
+        opts = {"popsize": lam, "tolfun": TOL_COST, "seed": self.seed, "verbose": -9,
+                "verb_log": 0, "verb_disp": 0, "signals_filename": ""}
+        es = cma.CMAEvolutionStrategy(np.zeros(dim), 1.0, opts)
+        stall = stall_generations(dim, float(es.sp.weights.mueff))
+        last_gain, stalled = self.cost_best, 0
+        self.stop_reason = "budget"
+        while True:
+            if self.budget.evaluations_left() - self.reserve() < lam:
+                self.stop_reason = "budget"
+                break
+            ys = es.ask()
+            xs = [m + L @ y for y in ys]
+            inside = [np.clip(x, self.space.lower, self.space.upper) for x in xs]
+            costs = self.rank(inside)
+            costs = [c + weight * float(np.sum((L_inv @ (x - xi))**2))
+                     for c, x, xi in zip(costs, xs, inside, strict=True)]
+            es.tell(ys, costs)
+            self.budget.report(f"global search: generation {es.countiter}, population {lam}, "
+                               f"best |r|^2 {self.cost_best:.4g}")
+            if last_gain - self.cost_best > TOL_COST:
+                last_gain, stalled = self.cost_best, 0
+            else:
+                stalled += 1
+            if stalled >= stall:
+                self.stop_reason = f"no gain above the scatter in {stall} generations"
+                break
+            if es.stop():
+                self.stop_reason = ", ".join(sorted(es.stop()))
+                break
+        self.stages.append(f"CMA-ES {self.budget.used - used} ({self.stop_reason})")
+
+    def polish(self) -> None:
+        """Bounded least squares (trust-region reflective, as identify's fits) from the best
+        point, the element count held; each Jacobian as :meth:`jacobian` (its columns evaluated
+        in parallel). Ends when a step gains less than TOL_COST (before that step's Jacobian is
+        taken) or when the budget left would not pay for another Jacobian and the answer."""
+        at = self.residual_best
+        if at is None or not self.cols:
+            return
+        used = self.budget.used
+        cols = self.cols
+        x_full = at[0].copy()
+        lo, hi = self.space.lower[cols], self.space.upper[cols]
+        u0 = np.clip(x_full[cols], lo, hi)
+        vectors: dict[bytes, FloatArray] = {}
+        m = at[1].shape[0]
+
+        def point(u: FloatArray) -> FloatArray:
+            x = x_full.copy()
+            x[cols] = u
+            return x
+
+        def fun(u: FloatArray) -> FloatArray:
+            key = np.asarray(u, dtype=np.float64).tobytes()
+            if key not in vectors:
+                o = self.evaluate([point(u)])[0]
+                vec = o.vector if o.vector is not None else \
+                    np.full(m, math.sqrt(self.failed_cost / m))
+                if len(vectors) > 64:
+                    vectors.clear()
+                vectors[key] = vec
+            return vectors[key]
+
+        last: list[float] = []
+
+        def jac(u: FloatArray) -> FloatArray:
+            r = fun(u)
+            cost = float(r @ r)
+            if last and last[-1] - cost < TOL_COST:
+                raise _ConvergedError
+            left = self.budget.evaluations_left() - 1 - \
+                (self.jacobian_cost() if self.with_uncertainty else 0)
+            if left < self.jacobian_cost() + 1:
+                raise _ConvergedError
+            last.append(cost)
+            return self.jacobian(point(np.asarray(u, dtype=np.float64)), r)[:, cols]
+
         self.budget.report("local polish")
-        result = self.pool.polish(PolishTask(model, free, values, max_nfev, with_uncertainty))
-        result.free = tuple(fp.name for fp in self.space.free)
-        result.message = f"CMA-ES ({self.stop_reason}), then least squares: {result.message}"
+        message = "ended where a step gained less than the scatter"
+        try:
+            sol = least_squares(fun, u0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0,
+                                ftol=1e-4, xtol=1e-4, gtol=1e-6)
+            message = str(sol.message)
+        except _ConvergedError:
+            pass
+        self.stages.append(f"polish {self.budget.used - used} ({len(last)} Jacobians; "
+                           f"{message})")
+
+    def finish(self, choice: ModelChoice) -> FitResult:
+        """The best point seen as the answer: its model evaluated once, with uncertainties."""
+        values = self.space.values(self.x_best)
+        model = choice.with_values(values)
+        used = self.budget.used
+        with_uncertainty = self.with_uncertainty and \
+            self.budget.evaluations_left() >= 1 + self.jacobian_cost()
+        self.budget.report("answer and uncertainties")
+        names = tuple(fp.name for fp in self.space.free)
+        result = self.pool.finish(FinishTask(model, names, "", with_uncertainty))
+        self.stages.append(f"answer {self.budget.used - used}")
+        result.message = "; ".join(self.stages)
         self.budget.report("done", evaluations_left=0.0)
         return result

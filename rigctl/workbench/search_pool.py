@@ -14,9 +14,10 @@ dataset and the model once, so a task carries only a point; each worker
 
 The parent waits for a batch in steps of :data:`POLL_S`, checking the budget's cancel flag
 (:meth:`~rigctl.workbench.budget.Budget.check`) between them; a cancel or Ctrl-C terminates every
-worker at once. The local polish and the uncertainties run as one task in a worker too, so they
-are cancelled the same way. With ``workers=0`` everything runs in this process (debugging,
-profiling); a cancel is then seen between evaluations only.
+worker at once. The polish's Jacobians are batches of points like a population; the answer's final
+evaluation and its uncertainties run as one task in a worker, so they are cancelled the same way.
+With ``workers=0`` everything runs in this process (debugging, profiling); a cancel is then seen
+between evaluations only.
 """
 
 from __future__ import annotations
@@ -42,11 +43,12 @@ from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
+from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import (
     FitResult,
     FreeParam,
     Objective,
-    least_squares_fit,
+    misses_most_slips,
     with_uncertainties,
 )
 from rigctl.workbench.model_choice import ModelChoice
@@ -70,20 +72,22 @@ class Point:
 @dataclass(frozen=True)
 class Outcome:
     """A point's cost |r|^2 (the residual vector of :class:`~rigctl.workbench.identify.Objective`,
-    in scatter units) and its status."""
+    in scatter units), its status and the residual vector itself (None where it failed): the
+    search's Jacobians are differences of these."""
 
     cost: float
     status: str
+    vector: FloatArray | None = None
 
 
 @dataclass(frozen=True)
-class PolishTask:
-    """The local least-squares fit from the search's best point, and its uncertainties."""
+class FinishTask:
+    """The search's answer: its model (the final values set) evaluated once, as a
+    :class:`~rigctl.workbench.identify.FitResult` of ``free``, with uncertainties if asked."""
 
     choice: ModelChoice
-    free: tuple[FreeParam, ...]
-    start: dict[str, float]
-    max_nfev: int
+    free: tuple[str, ...]
+    message: str
     with_uncertainty: bool
 
 
@@ -105,14 +109,17 @@ class _Evaluator:
             vec = obj(point.u)
         except (SimulationError, ParameterError):
             return Outcome(np.inf, FAILED)
-        if obj.failed(point.u):
-            return Outcome(np.inf, FAILED)
-        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK)
+        if obj.failed(point.u):  # the vector is the failure penalty: a least-squares fit's value
+            return Outcome(np.inf, FAILED, vec)
+        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec)
 
-    def polish(self, task: PolishTask) -> FitResult:
-        result = least_squares_fit(self.dataset, task.choice, list(task.free), start=task.start,
-                                   max_nfev=task.max_nfev)
-        if task.with_uncertainty:
+    def finish(self, task: FinishTask) -> FitResult:
+        ev = evaluate(self.dataset, task.choice)
+        result = FitResult(
+            choice=task.choice, error=ev.score.error, feature_error=ev.score.feature_error,
+            free=task.free, n_evaluations=1, message=task.message,
+            misses_most_slips=misses_most_slips(self.dataset, ev.score.comparisons))
+        if task.with_uncertainty and task.free:
             result = with_uncertainties(self.dataset, result)
         return result
 
@@ -134,9 +141,9 @@ def _evaluate_in_worker(point: Point) -> Outcome:
     return evaluator(point)
 
 
-def _polish_in_worker(task: PolishTask) -> FitResult:
+def _finish_in_worker(task: FinishTask) -> FitResult:
     evaluator: _Evaluator = _WORKER["evaluator"]
-    return evaluator.polish(task)
+    return evaluator.finish(task)
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -155,7 +162,7 @@ class EvaluationPool:
 
     def __init__(self, dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam],
                  budget: Budget, workers: int) -> None:
-        self.budget = budget
+        self.budget, self.dataset = budget, dataset
         self.workers = max(int(workers), 0)
         self._local = _Evaluator(dataset, choice, free) if self.workers == 0 else None
         self._pool: Any = None
@@ -200,13 +207,13 @@ class EvaluationPool:
         self.budget.spend(len(outcomes))
         return outcomes
 
-    def polish(self, task: PolishTask) -> FitResult:
-        """The local fit (and uncertainties) of ``task``; its evaluations count in the budget."""
+    def finish(self, task: FinishTask) -> FitResult:
+        """The answer of ``task`` (and its uncertainties); its evaluations count in the budget."""
         self.budget.check()
         if self._local is not None:
-            result = self._local.polish(task)
+            result = self._local.finish(task)
         else:
-            result = self._wait(self._pool.apply_async(_polish_in_worker, (task,)))
+            result = self._wait(self._pool.apply_async(_finish_in_worker, (task,)))
         self.budget.spend(result.n_evaluations)
         return result
 

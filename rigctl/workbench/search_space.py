@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -51,6 +51,10 @@ EFFECT_REACH = NEAR_PRESET
 """An effect's plausible range reaches this many times its typical magnitude from off: the
 library defaults are typical sizes, carried to the data's scale by ratios that are themselves
 only trusted to a factor NEAR_PRESET."""
+DAMPING_FOLLOWS_MASS = 0.5
+"""d ln C0 / d ln M at a fixed damping ratio (C0 = 2 zeta sqrt(K0 M)): where the mass is spread
+the drive damping moves with sqrt(M), as a mass that changes keeps the ringing's decay per cycle,
+and the damping's own spread is the damping ratio's."""
 N_ELEMENTS_RANGE = (2, 64)
 """Element counts searched: from 2 (one element has no thresholds to spread) to 64, past which
 each of the N steps of the stick ramp is under 2 % of it, inside a record's force scatter, while
@@ -70,6 +74,33 @@ class SearchSpace:
     damping not stated, the element count), and their plausible interval (internal units): the
     spread starts are drawn there."""
     count: bool
+    off: dict[int, float] = field(default_factory=dict)
+    """Effect coordinates and their off value (internal units, within the bounds): the start with
+    every effect switched off."""
+    follows: dict[int, tuple[int, float]] = field(default_factory=dict)
+    """Coordinate i moves with coordinate j, slope a, where it is spread (``{i: (j, a)}``): its
+    own spread is about that line. The drive damping C0 = 2 zeta sqrt(K0 M) follows the mass
+    with slope 1/2 in logs (DAMPING_FOLLOWS_MASS): what is unknown of it on its own is the
+    damping ratio zeta, not the C0 a new mass asks for."""
+
+    def prior_cov(self) -> FloatArray:
+        """The covariance of where the optimum is expected: each coordinate's standard deviation,
+        with the coordinates that follow another (:attr:`follows`) correlated with it."""
+        T = np.eye(self.dim)
+        for i, (j, a) in self.follows.items():
+            T[i, j] = a
+        return np.asarray(T @ np.diag(self.std**2) @ T.T, dtype=np.float64)
+
+    def spread_point(self, x0: FloatArray, values: Mapping[int, float]) -> FloatArray:
+        """``x0`` with the spread coordinates ``values`` set, and the coordinates that follow
+        another moved with it (:attr:`follows`)."""
+        x = np.array(x0, dtype=np.float64)
+        for i, v in values.items():
+            x[i] = v
+        for i, (j, a) in self.follows.items():
+            if j in values:
+                x[i] += a * (values[j] - x0[j])
+        return x
 
     @property
     def dim(self) -> int:
@@ -113,13 +144,16 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
     out: list[FreeParam] = []
     std: list[float] = []
     spread: dict[int, tuple[float, float]] = {}
+    off: dict[int, float] = {}
     for i, fp in enumerate(free):
         if fp.name in ranges:
-            lo, hi, typical = ranges[fp.name]
+            lo, hi, typical, p_off = ranges[fp.name]
             if not fp.log:  # scaled by the effect's own size, not by its value or bounds
                 fp = replace(fp, scale=typical)
             u_lo, u_hi = sorted((fp.to_u(lo), fp.to_u(hi)))
             spread[i] = (u_lo, u_hi)
+            if math.isfinite(p_off):  # an off value outside the bounds (0 of a log parameter):
+                off[i] = fp.to_u(min(max(p_off, fp.lower), fp.upper))  # the nearest bound
             std.append(0.25 * (u_hi - u_lo))
         elif fp.name in DYNAMIC_PARAMS and fp.log:
             v = table[fp.name].value
@@ -131,6 +165,11 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
         out.append(fp)
     lower = [fp.u_bounds[0] for fp in out]
     upper = [fp.u_bounds[1] for fp in out]
+    follows: dict[int, tuple[int, float]] = {}
+    names_at = {fp.name: i for i, fp in enumerate(out)}
+    if all(n in names_at and out[names_at[n]].log and names_at[n] in spread
+           for n in DYNAMIC_PARAMS):
+        follows[names_at["c0_N_s_per_m"]] = (names_at["m_kg"], DAMPING_FOLLOWS_MASS)
     count = spreads_elements and "n_elements" not in rig.fixed
     if count:
         lo_n, hi_n = (math.log2(n) for n in N_ELEMENTS_RANGE)
@@ -138,13 +177,14 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
         upper.append(hi_n)
         spread[len(out)] = (lo_n, hi_n)
         std.append(0.25 * (hi_n - lo_n))
-    return SearchSpace(tuple(out), np.array(std), np.array(lower), np.array(upper), spread, count)
+    return SearchSpace(tuple(out), np.array(std), np.array(lower), np.array(upper), spread, count,
+                       off, follows)
 
 
 def effect_ranges(dataset: Dataset, choice: ModelChoice,
-                  free: list[FreeParam]) -> dict[str, tuple[float, float, float]]:
-    """Each free effect parameter's plausible range (lower, upper) in parameter units and its
-    typical size (the module docstring)."""
+                  free: list[FreeParam]) -> dict[str, tuple[float, float, float, float]]:
+    """Each free effect parameter's plausible range (lower, upper) in parameter units, its
+    typical size (the module docstring) and its off value (NaN where the effect states none)."""
     table = {p.name: p for p in choice.parameter_table()}
     base = {n: p.value for n, p in table.items() if "." not in n}
     scale = campaign_scale(dataset)
@@ -152,7 +192,7 @@ def effect_ranges(dataset: Dataset, choice: ModelChoice,
     if scale.usable:
         rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
         ratios = scale_ratios(scale, base, rate)
-    out: dict[str, tuple[float, float, float]] = {}
+    out: dict[str, tuple[float, float, float, float]] = {}
     for effect in sorted({fp.name.split(".", 1)[0] for fp in free}):
         cls = effect_class(effect, choice.effect_files)
         if cls is None:
@@ -181,11 +221,12 @@ def effect_ranges(dataset: Dataset, choice: ModelChoice,
                 else:
                     lo = max(default / DYNAMICS_FACTOR, fp.lower)
                     hi = min(default * DYNAMICS_FACTOR, fp.upper)
-                    out[fp.name] = (lo, hi, default)
+                    out[fp.name] = (lo, hi, default, offs.get(key, math.nan))
                     continue
             signed = fp.lower < off < fp.upper and fp.lower < 0.0
             reach = EFFECT_REACH * abs(typical)
             lo = off - reach if signed else min(off, off + EFFECT_REACH * typical)
             hi = off + reach if signed else max(off, off + EFFECT_REACH * typical)
-            out[fp.name] = (max(lo, fp.lower), min(hi, fp.upper), abs(typical))
+            out[fp.name] = (max(lo, fp.lower), min(hi, fp.upper), abs(typical),
+                            offs.get(key, math.nan))
     return out

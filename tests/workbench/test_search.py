@@ -8,6 +8,7 @@ import multiprocessing
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from rigctl.model import build_model
@@ -18,7 +19,8 @@ from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import free_params, least_squares_fit
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.search import search_model
+from rigctl.workbench.search import default_budget, search_model, stall_generations
+from rigctl.workbench.search_space import build_space
 
 # another rig's scale: a 50 N contact on a 2e4 N/m drive, a 20 g slider (the preset: 300 N,
 # 1.475e6 N/m, 48 g)
@@ -111,3 +113,40 @@ def test_progress_reports_the_fraction_done_and_an_eta(short):
     fractions = [f for f, _, _ in seen]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     assert seen[-1][1] == 0.0 and seen[-1][2] == "done"
+
+
+def test_the_search_ends_where_it_stops_gaining_inside_its_cap(short):
+    budget = default_budget(9)
+    res = search_model(short, ModelChoice("paper"), budget=budget, workers=2,
+                       with_uncertainty=False)
+    assert res.n_evaluations == budget.used < 0.6 * budget.max_evaluations
+    assert "Jacobian" in res.message and "polish" in res.message
+    assert not res.misses_most_slips
+
+
+def test_the_effects_off_start_and_the_damping_that_follows_the_mass():
+    model = build_model("paper", params=RIG)
+    runs = simulate_campaign(model, "tlre", seed=5, noise=NOISE, sample_rate_hz=1000.0, fn_N=FN_N,
+                             velocity_m_s=V_M_S, duration_scale=0.25)
+    for run in runs:  # another rig's record: mass and damping not stated
+        for name in ("m_kg", "c0_N_s_per_m"):
+            run.metadata.pop(f"rig.{name}", None)
+    dataset = prepare_dataset(runs)
+    choice = ModelChoice("paper", ("stribeck",))
+    space = build_space(dataset, choice, choice, spreads_elements=False)
+    names = [fp.name for fp in space.free]
+    i_vs, i_m, i_c = (names.index(n) for n in ("stribeck.vs_m_per_s", "m_kg", "c0_N_s_per_m"))
+    assert space.off[i_vs] == pytest.approx(space.free[i_vs].to_u(0.0))  # linear: off is 0
+    assert space.follows == {i_c: (i_m, 0.5)}
+    x0 = space.vector(choice)
+    x = space.spread_point(x0, {i_m: x0[i_m] + math.log(100.0)})  # 100 times the mass
+    assert math.exp(x[i_c] - x0[i_c]) == pytest.approx(10.0)  # C0 with sqrt(M): same ratio
+    cov = space.prior_cov()
+    assert cov[i_c, i_m] == pytest.approx(0.5 * space.std[i_m] ** 2)
+    assert np.all(np.linalg.eigvalsh(cov) > 0.0)
+
+
+def test_stall_generations_is_the_step_size_paths_horizon():
+    # 1 / c_sigma with c_sigma = (mu_eff + 2) / (n + mu_eff + 5) (Hansen 2016, eq. 55)
+    assert stall_generations(9, 2.9) == 4
+    assert stall_generations(40, 5.0) == 8
