@@ -43,6 +43,7 @@ def _with_frames(path: Path, run, n_frames: int = 30) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_csv_gets_mechanics_and_names_the_image_analyses_it_cannot_do(saw, tmp_path):
     run, slips = saw
     csv = tmp_path / "other_rig.csv"
@@ -86,6 +87,7 @@ def test_frames_partly_without_times(saw, tmp_path):
     assert any("10 of 30 frames have no time stamp" in n for n in ra.notes)
 
 
+@pytest.mark.slow
 def test_a_run_cut_by_sigkill_is_analysed_up_to_its_last_flush(tmp_path):
     path = tmp_path / "killed.h5"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -119,6 +121,7 @@ def test_garbage_file_is_one_line_exit_2(tmp_path, capsys, content):
     assert err.count("\n") == 1 and "broken.h5" in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_truncated_hdf5_is_one_line_exit_2(saw, tmp_path, capsys):
     run, _ = saw
     p = write_measured_run(tmp_path / "whole.h5", run)
@@ -130,6 +133,7 @@ def test_truncated_hdf5_is_one_line_exit_2(saw, tmp_path, capsys):
     assert err.count("\n") == 1 and "cut.h5" in err and "truncated" in err
 
 
+@pytest.mark.slow
 def test_a_folder_with_one_bad_file_reports_the_others(saw, tmp_path, capsys):
     run, _ = saw
     folder = tmp_path / "campaign"

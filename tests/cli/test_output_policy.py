@@ -41,6 +41,7 @@ def _one_line_error(proc: subprocess.CompletedProcess[str], *words: str) -> None
         assert w in lines[0], lines[0]
 
 
+@pytest.mark.slow
 def test_an_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
     out = tmp_path / "a.csv"
     out.write_text("precious")
@@ -56,6 +57,7 @@ def test_an_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
     assert out.read_text().startswith("# ") or "t_s" in out.read_text()
 
 
+@pytest.mark.slow
 def test_export_refuses_an_existing_csv(tmp_path: Path) -> None:
     run = tmp_path / "r.h5"
     assert _rigctl("simulate", "--duration", "1", "--out", str(run)).returncode == 0
@@ -66,12 +68,14 @@ def test_export_refuses_an_existing_csv(tmp_path: Path) -> None:
     assert _rigctl("export", str(run), "--csv", str(csv), "--force").returncode == 0
 
 
+@pytest.mark.slow
 def test_a_missing_folder_is_refused_not_created(tmp_path: Path) -> None:
     out = tmp_path / "no" / "such" / "a.csv"
     _one_line_error(_rigctl("simulate", "--duration", "1", "--out", str(out)), "does not exist")
     assert not (tmp_path / "no").exists()
 
 
+@pytest.mark.slow
 def test_a_report_path_is_checked_before_the_fit(tmp_path: Path) -> None:
     data = tmp_path / "d.csv"
     assert _rigctl("simulate", "--duration", "5", "--out", str(data)).returncode == 0
@@ -83,6 +87,7 @@ def test_a_report_path_is_checked_before_the_fit(tmp_path: Path) -> None:
     assert time.monotonic() - t0 < 30.0  # refused at once, not after identifying the model
 
 
+@pytest.mark.slow
 def test_a_file_being_written_is_never_replaced(tmp_path: Path) -> None:
     target = tmp_path / "live.csv"
     target.write_text("being recorded\n")
@@ -101,18 +106,21 @@ def test_a_file_being_written_is_never_replaced(tmp_path: Path) -> None:
     (["--duration", "1", "--param", "mu_s=0.3", "--param", "mu_k=0.24"],
      ("cannot stick-slip", "mu_k (0.24) reaches mu_smax (0.2)")),
 ])
+@pytest.mark.slow
 def test_simulate_refuses_what_the_model_cannot_mean(tmp_path: Path, args: list[str],
                                                      words: tuple[str, ...]) -> None:
     _one_line_error(_rigctl("simulate", *args, "--out", str(tmp_path / "x.csv")), *words)
     assert not (tmp_path / "x.csv").exists()
 
 
+@pytest.mark.slow
 def test_an_implausible_velocity_is_warned_about(tmp_path: Path) -> None:
     proc = _rigctl("simulate", "--duration", "0.2", "--velocity", "0.5")
     assert proc.returncode == 0, proc.stderr
     assert "is the unit right" in proc.stderr
 
 
+@pytest.mark.slow
 def test_version_and_bare_command() -> None:
     proc = _rigctl("--version")
     assert proc.returncode == 0 and proc.stdout.startswith("rigctl 0."), proc.stdout
@@ -133,6 +141,7 @@ def test_run_preflight_never_replaces_a_file_being_recorded(tmp_path: Path) -> N
     check_output_path(target, overwrite=True)  # released: --force may replace it
 
 
+@pytest.mark.slow
 def test_the_configured_storage_folder_is_made_but_never_a_tree(tmp_path: Path) -> None:
     """`rigctl run` without --out writes into storage.directory: that folder is created if its
     parent exists; a path whose parents are missing (a typo) is refused, nothing created."""
@@ -143,6 +152,7 @@ def test_the_configured_storage_folder_is_made_but_never_a_tree(tmp_path: Path) 
     assert not (tmp_path / "no").exists()
 
 
+@pytest.mark.slow
 def test_a_run_file_missing_a_listed_channel_is_one_line(tmp_path: Path) -> None:
     import h5py
 
@@ -171,6 +181,7 @@ def _deny_writes_in(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(outputs.os, "access", access)
 
 
+@pytest.mark.slow
 def test_outputs_into_a_read_only_folder_are_refused_before_the_work(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

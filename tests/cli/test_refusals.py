@@ -54,6 +54,7 @@ def test_a_camera_the_simulator_cannot_render_is_refused_in_one_line(
     assert err.count("\n") == 1 and "at most 640 x 480 px" in err
 
 
+@pytest.mark.slow
 def test_a_reader_that_goes_away_is_not_a_traceback() -> None:
     """`rigctl run tlre --dry-run | head -1`: the pipe closes before the output ends."""
     import subprocess

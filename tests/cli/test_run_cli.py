@@ -69,6 +69,7 @@ def entry_text(path: Path, key: str) -> str:
         return f[f"entry/{key}"][()].decode()
 
 
+@pytest.mark.slow
 def test_dry_run_and_list_params_move_nothing(tmp_path):
     out = tmp_path / "never.h5"
     r = rigctl("run", "slide_hold_slide", "--dry-run", "--out", str(out))
@@ -79,6 +80,7 @@ def test_dry_run_and_list_params_move_nothing(tmp_path):
     assert r.returncode == 0 and "velocity_m_s" in r.stdout and "1.3e-06" in r.stdout
 
 
+@pytest.mark.slow
 def test_a_limit_beyond_the_rig_is_refused_by_the_dry_run(tmp_path):
     out = tmp_path / "never.h5"
     r = rigctl("run", "tlre", "--param", "fn_N=5000", "--speed", "max", "--out", str(out))
@@ -87,6 +89,7 @@ def test_a_limit_beyond_the_rig_is_refused_by_the_dry_run(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_an_unusable_output_path_is_refused_before_motion(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
@@ -96,6 +99,7 @@ def test_an_unusable_output_path_is_refused_before_motion(tmp_path):
     assert "completed" not in r.stdout
 
 
+@pytest.mark.slow
 def test_ctrl_c_brings_the_rig_to_a_safe_state_and_records_aborted(tmp_path):
     out = tmp_path / "ctrlc.h5"
     with started("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT) as proc:
@@ -114,6 +118,7 @@ def test_ctrl_c_brings_the_rig_to_a_safe_state_and_records_aborted(tmp_path):
     assert abs(d["fn_N"][-1]) < 1.0  # and the load was released before the file closed
 
 
+@pytest.mark.slow
 def test_a_second_ctrl_c_escalates_to_the_emergency_stop_and_still_closes_the_file(tmp_path):
     """The second Ctrl-C emergency-stops both stages; the file still ends with its status and end
     time, not 'running'."""
@@ -132,6 +137,7 @@ def test_a_second_ctrl_c_escalates_to_the_emergency_stop_and_still_closes_the_fi
         assert "safe_state" in [e.name for e in r.events()]
 
 
+@pytest.mark.slow
 def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
     """Pause/resume asked before the run exists are kept; SIGUSR1's default action (killing the
     process, exit -10, no file) never applies."""

@@ -144,6 +144,7 @@ def test_a_signal_mid_run_releases_the_load_and_closes_the_file_aborted(tmp_path
     assert abs(d["fn_N"][-1]) < 1.0  # and the load was released before the file closed
 
 
+@pytest.mark.slow
 def test_a_run_whose_stdout_is_closed_before_the_plan_is_refused_before_motion(tmp_path):
     """`rigctl run tlre ... | true`: nobody saw the plan; nothing moves, one line, exit 2."""
     out = tmp_path / "never.h5"
@@ -158,6 +159,7 @@ def test_a_run_whose_stdout_is_closed_before_the_plan_is_refused_before_motion(t
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_a_run_whose_stdout_closes_after_the_plan_completes_and_reports_on_stderr(tmp_path):
     """The reader saw the plan and went away: the rig moves, the run completes and is recorded,
     and the report the closed stdout cannot take goes to stderr; the exit code is the run's."""
@@ -176,6 +178,7 @@ def test_a_run_whose_stdout_closes_after_the_plan_completes_and_reports_on_stder
     assert entry_text(out, "status") == "completed"
 
 
+@pytest.mark.slow
 def test_the_run_service_outlives_a_hang_up_and_stops_safely_on_sigquit():
     """The service runs protocols too: a closed terminal (SIGHUP) never ends it; SIGQUIT goes the
     way of SIGTERM (abort any run to the safe state, stop), not its default core dump."""

@@ -10,6 +10,7 @@ from rigctl.data import REQUIRED_COLUMNS
 from rigctl.io.csv_format import read_csv
 
 
+@pytest.mark.slow
 def test_simulate_writes_exchange_csv_and_plot(tmp_path, capsys):
     out = tmp_path / "run.csv"
     png = tmp_path / "run.png"

@@ -153,6 +153,7 @@ def daq() -> Iterator[CanDaq]:
 
 @settings(max_examples=100, deadline=None)
 @given(frames=st.lists(st.tuples(st.booleans(), st.binary(max_size=12), st.booleans()), max_size=30))
+@pytest.mark.slow
 def test_can_daq_survives_any_frames(daq: CanDaq, frames: list[tuple[bool, bytes, bool]]) -> None:
     errors_before = daq.protocol_errors
     for is_force, payload, remote in frames:
@@ -242,6 +243,7 @@ def probe() -> Iterator[SerialProbe]:
 
 @settings(max_examples=200, deadline=None)
 @given(probe_lines.map(lambda b: b"D," + b))
+@pytest.mark.slow
 def test_probe_stream_dispatch_survives_any_line(probe: SerialProbe, line: bytes) -> None:
     before = probe.protocol_errors
     probe._dispatch(line, time.monotonic_ns())

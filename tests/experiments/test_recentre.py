@@ -89,6 +89,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return on, off
 
 
+@pytest.mark.slow
 def test_without_recentring_d1_goes_over_range_while_sliding(runs: tuple[Path, Path]) -> None:
     events, slides = _events(runs[1])
     assert any(n == "probe_over_range" and a < t < b for t, n, _ in events for a, b in slides)
@@ -140,6 +141,7 @@ def test_the_stitched_delta_is_continuous_across_each_move(runs: tuple[Path, Pat
     assert np.ptp(d1) > 50e-6  # stitched: the slide's ~60 um, not the re-centred readings' ~35 um
 
 
+@pytest.mark.slow
 def test_the_analysis_finds_one_pass_per_repetition(runs: tuple[Path, Path]) -> None:
     analysis = analyse_run(runs[0])
     passes = analysis.mechanics.passes

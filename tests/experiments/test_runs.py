@@ -106,6 +106,7 @@ def test_the_record_reaches_the_end_of_the_protocol_when_the_reader_lags(rig, tm
     assert run.x_stage_m[-1] == pytest.approx(run.x_stage_m[0], abs=0.5e-6)
 
 
+@pytest.mark.slow
 def test_pause_stops_the_slide_and_resume_finishes_it(rig, tmp_path):
     out = tmp_path / "paused.h5"
     controls = Controls()
@@ -126,6 +127,7 @@ def test_pause_stops_the_slide_and_resume_finishes_it(rig, tmp_path):
     assert "pause" in events and "resume" in events
 
 
+@pytest.mark.slow
 def test_abort_brings_the_rig_to_a_safe_state(rig, tmp_path):
     out = tmp_path / "aborted.h5"
     controls = Controls()
@@ -144,6 +146,7 @@ def test_abort_brings_the_rig_to_a_safe_state(rig, tmp_path):
     assert read_run(out).n_samples > 0
 
 
+@pytest.mark.slow
 def test_a_device_that_stops_answering_fails_the_run_safely(rig, tmp_path):
     out = tmp_path / "dead.h5"
     runner = make_runner(rig, "tlre", SHORT_TLRE, out)
@@ -188,6 +191,7 @@ def test_a_force_limit_violated_mid_protocol_fails_and_releases(tmp_path):
     assert status_of(out)[0] == "failed"
 
 
+@pytest.mark.slow
 def test_a_stage_that_stops_answering_fails_the_run_and_the_load_is_released(rig, tmp_path):
     """The tangential stage's controller goes silent mid-slide: the run fails naming it, the normal
     load (the one thing still reachable) is released, the data before the fault is kept."""
@@ -284,6 +288,7 @@ def test_a_reading_frozen_mid_load_is_not_reported_as_a_load_still_on(tmp_path):
         assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # released in fact
 
 
+@pytest.mark.slow
 def test_a_failure_caused_by_an_abort_ends_the_run_aborted(rig, tmp_path):
     """An e-stop stops the stages and aborts the run; the stage alarm it causes can reach the step
     (as a device error of the acquisition) before the abort flag does. The run was still aborted
@@ -359,6 +364,7 @@ def test_a_blind_force_sensor_before_contact_stops_the_search_at_its_configured_
     assert fn_end == pytest.approx(0.0, abs=0.05)  # the safe state released the load
 
 
+@pytest.mark.slow
 def test_a_force_sensor_blind_under_load_stops_within_the_approach_bound(tmp_path):
     """The sensor goes blind half-way up the load (true Fn 100 N): the load step keeps pressing on a
     reading of ~0 N until the stage would pass max_approach_m beyond the first contact reading, and

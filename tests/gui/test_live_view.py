@@ -49,6 +49,7 @@ def events_text(view: LiveView) -> str:
     return view.events.toPlainText()
 
 
+@pytest.mark.slow
 def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, tmp_path):
     out = tmp_path / "live.h5"
     window = tlre_window(qtbot, rig, out)
@@ -98,6 +99,7 @@ def test_live_tab_shows_forces_camera_events_and_file_during_a_tlre(qtbot, rig, 
         assert r.status == "completed"
 
 
+@pytest.mark.slow
 def test_a_finished_run_s_last_frame_is_not_shown_in_the_next_run(qtbot, rig, tmp_path):
     """A run's frame forwarder flushes its last frame after the run ended; a run started at once
     must not show it: it put the previous run's rig times (27 s) into the new run's Isum plot,
@@ -117,6 +119,7 @@ def test_a_finished_run_s_last_frame_is_not_shown_in_the_next_run(qtbot, rig, tm
     qtbot.waitUntil(lambda: panel.state == "idle" and not panel.busy, timeout=TIMEOUT_MS)
 
 
+@pytest.mark.slow
 def test_a_frame_of_an_earlier_job_is_dropped(qtbot, rig):
     window = tlre_window(qtbot, rig, Path("unused.h5"), camera=True)
     panel = window.panel
@@ -143,6 +146,7 @@ class _NoService:
         pass
 
 
+@pytest.mark.slow
 def test_a_queued_run_keeps_its_first_frame_and_drops_the_previous_run_s(qtbot, rig):
     """The run service's messages in order: a frame of the previous run, the queued run's
     ``started``, its first frame. The window begins the queued run later, in the GUI thread; the
@@ -168,6 +172,7 @@ def test_a_queued_run_keeps_its_first_frame_and_drops_the_previous_run_s(qtbot, 
     assert kept == ["first frame of the queued run"]
 
 
+@pytest.mark.slow
 def test_estop_from_the_live_tab_aborts_and_is_listed(qtbot, rig, tmp_path):
     out = tmp_path / "live_estop.h5"
     window = tlre_window(qtbot, rig, out, camera=False)
@@ -189,6 +194,7 @@ def test_estop_from_the_live_tab_aborts_and_is_listed(qtbot, rig, tmp_path):
     qtbot.waitUntil(lambda: "emergency stop latched" in events_text(view), timeout=5000)
 
 
+@pytest.mark.slow
 def test_history_stays_bounded_when_fed_an_hour(qtbot):
     view = LiveView(rate_hz=1024.0, window_s=10.0, camera_rate_hz=60.0)
     qtbot.addWidget(view)

@@ -78,6 +78,7 @@ def eta_numbers(panel: RunPanel) -> tuple[str, str]:
 
 
 # ---------------------------------------------------------------- the fixed behaviours (in process)
+@pytest.mark.slow
 def test_progress_and_eta_stand_still_while_paused(qtbot, rig, panels, tmp_path):
     panel = make_panel(qtbot, panels, rig=rig)
     panel.out_edit.setText(str(tmp_path / "paused.h5"))
@@ -166,6 +167,7 @@ def test_a_refused_start_leaves_no_starting_label(qtbot, rig, panels, tmp_path):
     assert panel.file_label.text() == "" and not out.exists()
 
 
+@pytest.mark.slow
 def test_the_run_file_is_shown_once_it_exists_and_records_operator_and_notes(qtbot, rig, panels,
                                                                             tmp_path):
     panel = make_panel(qtbot, panels, rig=rig)
@@ -223,6 +225,7 @@ def statuses(panel: RunPanel) -> list[str]:
     return [it.status for it in panel.queue_view.state.items]
 
 
+@pytest.mark.slow
 def test_a_queue_of_two_runs_completes_both_files(qtbot, service, panels, tmp_path):
     panel = make_panel(qtbot, panels, speed="max", service=service)
     first, second = tmp_path / "q1_sweep.h5", tmp_path / "q2_shs.h5"
@@ -249,6 +252,7 @@ def test_a_queue_of_two_runs_completes_both_files(qtbot, service, panels, tmp_pa
         assert r.parameters["forces_N"] == [100.0, 150.0]
 
 
+@pytest.mark.slow
 def test_aborting_the_queue_mid_first_run_aborts_it_and_drops_the_rest(qtbot, service, panels,
                                                                        tmp_path):
     panel = make_panel(qtbot, panels, speed="max", service=service)

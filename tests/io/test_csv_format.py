@@ -186,6 +186,7 @@ def test_write_into_missing_folder_is_a_clear_error(tmp_path: Path) -> None:
         write_csv(tmp_path / "nope" / "out.csv", make_run(5))
 
 
+@pytest.mark.slow
 def test_a_200_s_run_at_1024_hz_loads_in_well_under_a_second(tmp_path: Path) -> None:
     run = make_run(200 * 1024, extra=False)
     path = tmp_path / "long.csv"

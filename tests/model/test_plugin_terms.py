@@ -113,6 +113,7 @@ def _assert_close(a: SimResult, b: SimResult, ft_N: float, t_s: float) -> None:
         assert ea.slip_m == pytest.approx(eb.slip_m, rel=1e-4)
 
 
+@pytest.mark.slow
 def test_a_term_that_adds_nothing_takes_the_general_path_and_agrees_with_the_exact_one(exact):
     """The general path (RK4, events by bisection) against the exact path, on the paper model's
     initial stage, first slips and ringing: slip times within 10 us, peaks within 10 mN, Ft at

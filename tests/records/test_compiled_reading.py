@@ -132,6 +132,7 @@ def _model(name: str) -> ModelSpec:
 
 
 @pytest.mark.parametrize(("rig", "protocol", "rate_hz", "noisy", "reader"), CASES)
+@pytest.mark.slow
 def test_simulated_campaigns_read_the_same(rig: str, protocol: str, rate_hz: float, noisy: bool,
                                            reader: str) -> None:
     light = rig == "light"

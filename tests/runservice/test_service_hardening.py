@@ -159,6 +159,7 @@ def test_a_key_planted_by_another_user_is_never_used(folder: Path) -> None:
         Address(folder).key()
 
 
+@pytest.mark.slow
 def test_the_service_refuses_an_open_folder_in_one_line_before_the_rig_opens(tmp_path: Path) -> None:
     import subprocess
     import sys

@@ -36,6 +36,7 @@ def two_effects(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow
 def test_auto_adds_both_hidden_effects_and_the_error_falls(two_effects, tmp_path, capsys):
     report = tmp_path / "auto"
     code = main(["model", "diagnose", str(two_effects), "--auto", "--json", "--workers", "2",
@@ -66,6 +67,7 @@ def test_auto_adds_both_hidden_effects_and_the_error_falls(two_effects, tmp_path
         assert final_png.read_bytes() != base_png.read_bytes()  # the final model's own figure
 
 
+@pytest.mark.slow
 def test_a_diagnosis_that_added_nothing_has_no_final_model_section(two_effects, tmp_path):
     runs = load_runs([two_effects])
     dataset = prepare_dataset(runs)

@@ -105,6 +105,7 @@ def test_no_scan_without_such_an_effect_or_where_the_rig_states_n(fits):
     assert fits.calls == []
 
 
+@pytest.mark.slow
 def test_the_refits_run_in_worker_processes_and_a_failed_one_is_said(fits, monkeypatch):
     """The counts are fitted in parallel worker processes (forked: the stub goes with them), and a
     count whose fit dies is reported and skipped, not fatal."""

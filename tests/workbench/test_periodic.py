@@ -93,6 +93,7 @@ def test_a_ratio_feature_rises_and_falls_in_percent():
                            "about 25 um of track")
 
 
+@pytest.mark.slow
 def test_pure_noise_gives_no_pattern_at_the_stated_level():
     """20 campaigns of scatter alone: at FAP_LEVEL = 0.01 over all the tests of a map, at most one
     reports a period or a correlation (the expectation is 0.2)."""
@@ -103,6 +104,7 @@ def test_pure_noise_gives_no_pattern_at_the_stated_level():
     assert found <= 1
 
 
+@pytest.mark.slow
 def test_the_false_alarm_probability_holds_for_single_runs_of_noise():
     """Baluev's approximation at the 5 % level: at most about 5 % of noise series exceed it (the
     bound errs high), and a sinusoid of 1.5 scatter units in 40 slips is found at 1 % in at least
@@ -175,6 +177,7 @@ def test_lag1_of_noise_is_not_biased_by_the_lines():
     assert 0.02 <= np.mean(np.array(ps) < 0.05) <= 0.09
 
 
+@pytest.mark.slow
 def test_the_report_draws_the_pattern_with_its_sinusoid(tmp_path: Path):
     ds, comps = _campaign(1, _track_wave(40e-6, 0.3))
     rmap = residual_map(ds, comps)
