@@ -70,6 +70,9 @@ def test_it_finds_the_generating_model_of_another_rig_from_the_preset():
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the new search (not yet used by diagnose) ends at a "
+                   "Stribeck velocity of 6.2 mm/s against 12 mm/s: its polish stops on xtol after "
+                   "1-2 Jacobians (issue 34, open); strict: a search that finds it fails this mark")
 def test_it_finds_a_stribeck_velocity_from_the_effect_off():
     # velocity steps at two loads; everything but mu_k and the Stribeck velocity stated; the
     # search starts from the base fit with the effect off, where the weakening has no slope
