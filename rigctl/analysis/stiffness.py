@@ -67,9 +67,11 @@ def band_stiffness(ft_N: FloatArray, delta_m: FloatArray, sigma_f: float, sigma_
     c = math.nan
     for _ in range(2):
         f, d = ft_N[keep], delta_m[keep]
+        if f.shape[0] < MIN_BAND_SAMPLES:  # the outliers left too few (none: a mean of nothing)
+            return NAN_SLOPE
         df = f - f.mean()
         sxx = float(df @ df)
-        if f.shape[0] < MIN_BAND_SAMPLES or sxx <= 0.0:
+        if sxx <= 0.0:
             return NAN_SLOPE
         c = float(df @ (d - d.mean())) / sxx
         resid = delta_m - (d.mean() + c * (ft_N - f.mean()))
