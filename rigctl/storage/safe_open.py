@@ -6,15 +6,19 @@ stop (a file cut at a third of its length, 16 bytes flipped in its metadata). A 
 tries once and fails at once. So:
 
 1. the superblock's declared end of file is compared with the file's size (no HDF5 call);
-2. a whole file (a closed run: the normal case) is opened plainly and every piece of its metadata
-   is read once in this process (:func:`rigctl.storage.probe.walk_metadata`: a few milliseconds);
-   damage is then a one-line :class:`DataError` at once;
+2. a whole file (a closed run: the normal case) is opened plainly, its global heap collections
+   (the variable-length strings: no checksum, and a damaged one makes the HDF5 library loop for
+   ever in this process) checked by :func:`rigctl.storage.heap_check.check_global_heaps` without
+   HDF5 reading them, and every piece of its metadata read once in this process
+   (:func:`rigctl.storage.probe.walk_metadata`): tens of milliseconds together; damage is then a
+   one-line :class:`DataError` at once;
 3. a file that another process is writing (a live run) is opened for SWMR at once: HDF5's
    retries are then what they are for, a writer changing the metadata under the reader;
 4. any other file a plain open refuses (its writer died: HDF5's "open for writing" flag is still
    set; or damaged) and a truncated file are first opened and walked the same way in a child
    process killed after :data:`OPEN_TIMEOUT_S` (waiting for it is interruptible); only if that
-   succeeds is it opened for SWMR here. Its metadata then holds nothing a read could hang on.
+   succeeds is it opened for SWMR here, and its global heap checked as in 2. Its metadata then
+   holds nothing a read could hang on.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from pathlib import Path
 import h5py
 
 from rigctl.data import DataError
-from rigctl.storage import probe
+from rigctl.storage import heap_check, probe
 from rigctl.storage.text import one_line
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -69,7 +73,11 @@ def open_run_file(path: Path) -> OpenedFile:
             # its writer died, or damaged: the child decides
         else:
             try:
+                _check_heaps(f, path, size)
                 probe.walk_metadata(f)
+            except DataError:
+                f.close()
+                raise
             except Exception as exc:  # any failure of the walk is damage
                 f.close()
                 raise DataError(f"damaged HDF5 metadata ({one_line(exc)}): nothing can be read",
@@ -81,7 +89,26 @@ def open_run_file(path: Path) -> OpenedFile:
             raise DataError(f"{truncation} ({problem}; a copy cut short or a damaged disk): "
                             "nothing can be read", path=path)
         raise DataError(f"damaged HDF5 file ({problem}): nothing can be read", path=path)
-    return OpenedFile(_open_swmr(path), size, truncation)
+    f = _open_swmr(path)
+    try:
+        _check_heaps(f, path, size)  # the child read the attributes, not the string datasets
+    except BaseException:
+        f.close()
+        raise
+    return OpenedFile(f, size, truncation)
+
+
+def _check_heaps(f: h5py.File, path: Path, size: int) -> None:
+    """:func:`rigctl.storage.heap_check.check_global_heaps`, its verdict as a :class:`DataError`."""
+    try:
+        with open(path, "rb") as fh:
+            heap_check.check_global_heaps(f, fh, size)
+    except heap_check.HeapDamageError as exc:
+        raise DataError(f"damaged HDF5 global heap ({exc}): nothing can be read",
+                        path=path) from None
+    except Exception as exc:  # HDF5 refusing an object on the way: damaged metadata
+        raise DataError(f"damaged HDF5 metadata ({one_line(exc)}): nothing can be read",
+                        path=path) from None
 
 
 def _open_swmr(path: Path) -> h5py.File:

@@ -4,27 +4,34 @@ docs/reliability.md "Files").
 
 Before: a SWMR open retried a metadata read whose checksum failed with doubling sleeps, for hours,
 ignoring Ctrl-C (16 bytes flipped at offset 600 or 2000; a file cut at a third of its length), and a
-file cut at 50 kB gave a traceback.
+file cut at 50 kB gave a traceback. Then: bytes damaged inside HDF5's global heap (the
+variable-length strings written at creation: no checksum) made the HDF5 library loop for ever in
+this process. Reads that could hang run in a reader process of their own
+(``damaged_reader_proc.py``) that the test kills after a timeout, so the suite never hangs.
 """
 
 from __future__ import annotations
 
+import queue
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from rigctl.data import DataError
-from rigctl.storage import DaqLayout, RunDescription, RunReader, RunWriter
+from rigctl.storage import DaqLayout, RunDescription, RunReader, RunWriter, heap_check
 from tests.storage.conftest import block
 
 RIGCTL = [sys.executable, "-m", "rigctl.cli.main"]
+REPO = Path(__file__).resolve().parents[2]
 N_SAMPLES = 10_000
 ANSWER_WITHIN_S = 30.0
 """Generous on a loaded machine: a cut file is judged by a child process killed after 5 s, which
@@ -85,6 +92,137 @@ def test_flipped_metadata_is_refused_at_once(small_run, tmp_path: Path, at: int)
     assert time.monotonic() - started < 2.0  # in this process: no child, no retries
 
 
+class ReaderProcess:
+    """``damaged_reader_proc.py`` serving one damaged file after another; restarted after a read
+    that did not answer in time (killed: it was looping inside HDF5)."""
+
+    def __init__(self, intact: Path) -> None:
+        self.intact = intact
+        self._start()
+
+    def _start(self) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "tests.storage.damaged_reader_proc", str(self.intact)],
+            cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            text=True)
+        self.lines: queue.Queue[str | None] = queue.Queue()
+        out, lines = self.proc.stdout, self.lines
+
+        def pump() -> None:
+            assert out is not None
+            for line in out:
+                lines.put(line.strip())
+            lines.put(None)
+
+        threading.Thread(target=pump, daemon=True).start()
+        assert self.lines.get(timeout=120) == "ready"
+
+    def ask(self, path: Path, timeout_s: float = ANSWER_WITHIN_S) -> str:
+        """The reader's one-line answer for ``path``, or ``no answer within N s``."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"{path}\n")
+        self.proc.stdin.flush()
+        try:
+            answer = self.lines.get(timeout=timeout_s)
+        except queue.Empty:
+            answer = None
+        if answer is None:
+            self.close()
+            self._start()
+            return f"no answer within {timeout_s:g} s"
+        return answer
+
+    def close(self) -> None:
+        self.proc.kill()
+        self.proc.wait()
+
+
+@pytest.fixture(scope="module")
+def reader(small_run) -> Iterator[ReaderProcess]:
+    r = ReaderProcess(small_run[0])
+    yield r
+    r.close()
+
+
+def _answered(reader: ReaderProcess, path: Path) -> str:
+    """The reader's answer for ``path``, asserted to be one within seconds: a one-line refusal, or
+    a read of exactly the intact run's first samples."""
+    started = time.monotonic()
+    answer = reader.ask(path)
+    elapsed = time.monotonic() - started
+    assert answer.startswith(("refused ", "read ")), answer
+    assert elapsed < ANSWER_WITHIN_S, f"{answer} after {elapsed:.1f} s"
+    return answer
+
+
+def _collection(data: bytes) -> tuple[int, list[tuple[int, int]]]:
+    """The intact file's (one) global heap collection: its offset, and (offset, index) of each of
+    its objects, the free space (index 0) last."""
+    at = data.index(heap_check.SIGNATURE)
+    size = int.from_bytes(data[at + 8 : at + 16], "little")
+    objects, p = [], at + 16
+    while p < at + size:
+        index = int.from_bytes(data[p : p + 2], "little")
+        length = int.from_bytes(data[p + 8 : p + 16], "little")
+        objects.append((p, index))
+        p += length if index == 0 else 16 + (length + 7) // 8 * 8
+    return at, objects
+
+
+def _damaged(data: bytes, at: int, value: bytes) -> bytes:
+    return data[:at] + value + data[at + len(value) :]
+
+
+def _heap_cases(data: bytes) -> dict[str, tuple[bytes, str]]:
+    """Damage to the global heap: the file, and the words the refusal must hold."""
+    at, objects = _collection(data)
+    free, _ = objects[-1]
+    first, _ = objects[0]
+    return {
+        # the HDF5 library loops for ever on this one (a free space making no progress)
+        "free space of 0 bytes": (_damaged(data, free + 8, bytes(8)), "free space of 0 bytes"),
+        "zeroed free-space header": (_damaged(data, free, bytes(16)), "free space of 0 bytes"),
+        "version": (_damaged(data, at + 4, b"\x07"), "version 7, not 1"),
+        "collection size": (_damaged(data, at + 8, (1 << 40).to_bytes(8, "little")),
+                            "run past the end of the file"),
+        "object size": (_damaged(data, first + 8, (2**64 - 32).to_bytes(8, "little")),
+                        "past the collection's end"),
+        "index used twice": (_damaged(data, objects[1][0], objects[0][1].to_bytes(2, "little")),
+                             "is used twice"),
+        "signature": (_damaged(data, at, b"XXXX"), "where there is none"),
+    }
+
+
+def test_damage_in_the_global_heap_is_refused_in_one_line(small_run, tmp_path: Path,
+                                                          reader: ReaderProcess) -> None:
+    """Before: the first two cases never answered (the HDF5 library looped in
+    H5HG__cache_heap_deserialize, Ctrl-C ignored); the others were refused by HDF5 itself."""
+    path, _ = small_run
+    for name, (content, words) in _heap_cases(path.read_bytes()).items():
+        bad = tmp_path / "heap.h5"
+        bad.write_bytes(content)
+        answer = _answered(reader, bad)
+        assert answer.startswith("refused ") and "global heap" in answer, (name, answer)
+        assert words in answer, (name, answer)
+
+
+def test_the_heap_check_finds_the_collections(small_run, tmp_path: Path) -> None:
+    """Through the heap references (the normal way) and by signature (the fallback for files whose
+    references it does not parse): the same collection, the same verdict on damage."""
+    path, _ = small_run
+    data = path.read_bytes()
+    at, _ = _collection(data)
+    with h5py.File(path, "r") as f, open(path, "rb") as fh:
+        for exhaustive in (False, True):
+            assert heap_check.check_global_heaps(f, fh, len(data), exhaustive=exhaustive) == 1
+    bad = tmp_path / "heap.h5"
+    bad.write_bytes(_heap_cases(data)["free space of 0 bytes"][0])
+    with h5py.File(bad, "r") as f, open(bad, "rb") as fh:
+        for exhaustive in (False, True):
+            with pytest.raises(heap_check.HeapDamageError, match=f"at byte {at:,}: free space"):
+                heap_check.check_global_heaps(f, fh, len(data), exhaustive=exhaustive)
+
+
 @settings(max_examples=3, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(fraction=st.floats(0.0, 1.0, exclude_max=True))
@@ -102,22 +240,37 @@ def _first_chunk_offset(path: Path) -> int:
         return int(f["entry/daq/time"].id.get_chunk_info(0).byte_offset)
 
 
-@settings(max_examples=30, deadline=None, derandomize=True,
+DAMAGE = st.tuples(
+    # anywhere in the file, or in the metadata written at creation (superblock, object headers,
+    # the global heap: a few kB before the first chunk, a small share of the file)
+    st.one_of(st.floats(0.0, 1.0, exclude_max=True).map(lambda x: ("file", x)),
+              st.floats(0.0, 1.0, exclude_max=True).map(lambda x: ("creation", x))),
+    st.sampled_from([1, 8, 16]),
+    st.sampled_from(["flip", "zero"]),  # bits inverted, or bytes zeroed (a block lost on disk)
+)
+
+
+def _with_damage(data: bytes, begin: int, damage: tuple[tuple[str, float], int, str]) -> bytes:
+    (where, fraction), width, how = damage
+    at = int((len(data) if where == "file" else begin) * fraction)
+    if how == "zero":
+        return _damaged(data, at, bytes(min(width, len(data) - at)))
+    return _flipped(data, at, width)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(fraction=st.floats(0.0, 1.0, exclude_max=True), width=st.sampled_from([1, 16]))
+@given(damage=DAMAGE)
 @pytest.mark.timeout(240)
-def test_flipped_bytes_after_the_creation_metadata_get_an_answer(
-        small_run, tmp_path: Path, fraction: float, width: int) -> None:
-    """Flips in the data chunks and the metadata written while recording (chunk indexes, object
-    headers: checksummed). Flips inside the metadata written at creation are the two cases above;
-    a flip inside HDF5's global heap (variable-length strings) can still make the HDF5 library loop
-    (docs/reliability.md, "Files")."""
-    path, whole = small_run
+def test_damaged_bytes_anywhere_get_an_answer(small_run, tmp_path: Path, reader: ReaderProcess,
+                                              damage: tuple[tuple[str, float], int, str]) -> None:
+    """Bytes flipped or zeroed anywhere, the metadata written at creation included (the global
+    heap among it): a one-line refusal or the intact run's first samples, within seconds."""
+    path, _ = small_run
     data = path.read_bytes()
-    begin = _first_chunk_offset(path)
-    bad = tmp_path / "flip.h5"
-    bad.write_bytes(_flipped(data, begin + int((len(data) - begin) * fraction), width))
-    _answer(bad, whole)
+    bad = tmp_path / "damaged.h5"
+    bad.write_bytes(_with_damage(data, _first_chunk_offset(path), damage))
+    event(f"{damage[0][0]}: {_answered(reader, bad).split()[0]}")
 
 
 @pytest.mark.slow
@@ -132,6 +285,43 @@ def test_many_cuts_get_an_answer(small_run, tmp_path: Path, fraction: float) -> 
     cut = tmp_path / "cut.h5"
     cut.write_bytes(data[: int(len(data) * fraction)])
     _answer(cut, whole)
+
+
+@settings(max_examples=20, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(from_end=st.integers(0, 1000), field=st.sampled_from(["index", "size"]),
+       how=st.sampled_from(["zero", "flip"]))
+@pytest.mark.timeout(240)
+def test_damaged_heap_objects_get_an_answer(small_run, tmp_path: Path, reader: ReaderProcess,
+                                            from_end: int, field: str, how: str) -> None:
+    """The fields the HDF5 library walks a collection by, one object's zeroed or flipped (counted
+    from the collection's end: the free space is the last). Before: a zeroed free-space size never
+    answered."""
+    path, _ = small_run
+    data = path.read_bytes()
+    _, objects = _collection(data)
+    at = objects[-1 - from_end % len(objects)][0] + (0 if field == "index" else 8)
+    width = 2 if field == "index" else 8
+    bad = tmp_path / "heap.h5"
+    bad.write_bytes(_damaged(data, at, bytes(width)) if how == "zero" else _flipped(data, at, width))
+    answer = _answered(reader, bad)
+    event(answer.split()[0])
+
+
+@pytest.mark.slow
+@settings(max_examples=300, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(damage=DAMAGE)
+@pytest.mark.timeout(1800)
+def test_many_damaged_bytes_get_an_answer(small_run, tmp_path: Path, reader: ReaderProcess,
+                                          damage: tuple[tuple[str, float], int, str]) -> None:
+    """The slow tier of the test above (a damaged superblock or object header costs the 5 s
+    child-process timeout)."""
+    path, _ = small_run
+    data = path.read_bytes()
+    bad = tmp_path / "damaged.h5"
+    bad.write_bytes(_with_damage(data, _first_chunk_offset(path), damage))
+    event(f"{damage[0][0]}: {_answered(reader, bad).split()[0]}")
 
 
 def test_the_command_line_answers_in_one_line(small_run, tmp_path: Path) -> None:
