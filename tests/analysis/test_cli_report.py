@@ -43,6 +43,7 @@ def test_default_out_folder_next_to_the_run(tmp_path, capsys):
     assert "report:" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_folder_of_runs_at_three_forces_is_a_sweep(tmp_path, capsys):
     folder = tmp_path / "sweep"
     folder.mkdir()

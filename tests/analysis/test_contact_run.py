@@ -108,6 +108,7 @@ def test_isum_is_linear_in_fn_below_300_N_on_a_simulated_nlre(tmp_path: Path) ->
     assert a > 0 and r2 > 0.99 and n > 30
 
 
+@pytest.mark.slow
 def test_the_report_has_the_contact_section(sim_file: Path, tmp_path: Path) -> None:
     index, js = write_report(analyse_campaign([sim_file]), tmp_path / "rep")
     html = index.read_text()

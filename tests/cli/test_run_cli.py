@@ -160,6 +160,7 @@ def test_sigusr1_while_the_rig_starts_does_not_kill_the_run(tmp_path):
     assert "pause" in stderr and "resume" in stderr  # said, whichever phase caught them
 
 
+@pytest.mark.slow
 def test_pause_and_resume_during_the_run_are_said(tmp_path):
     out = tmp_path / "pr.h5"
     with started("run", "tlre", "--speed", "20", "--no-camera", "--out", str(out), *SHORT) as proc:
@@ -172,6 +173,7 @@ def test_pause_and_resume_during_the_run_are_said(tmp_path):
     assert "paused (SIGUSR1; SIGUSR2 resumes)" in stderr and "resumed (SIGUSR2)" in stderr
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_a_readable_file_missing_at_most_half_a_second(tmp_path):
     out = tmp_path / "killed.h5"
     with started("run", "tlre", "--speed", "1", "--out", str(out), *SHORT) as proc:
@@ -203,6 +205,7 @@ def _limit_file_size(limit_bytes: int):
 
 
 @pytest.mark.skipif(not hasattr(resource, "RLIMIT_FSIZE"), reason="needs RLIMIT_FSIZE")
+@pytest.mark.slow
 def test_a_full_disk_mid_run_fails_safely_and_keeps_what_was_written(tmp_path):
     """The file-size limit stands in for a full disk: writes beyond it fail (EFBIG) like ENOSPC."""
     out = tmp_path / "full.h5"

@@ -20,6 +20,7 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "load_step
 QUICK = ["--param", "slide_m=60e-6", "--param", "settle_s=1", "--param", "preload_hold_s=1"]
 
 
+@pytest.mark.slow
 def test_the_dry_run_refuses_a_file_protocol_the_same_way_as_a_built_in(tmp_path):
     out = tmp_path / "never.h5"
     mine = rigctl("run", str(EXAMPLE), "--param", "forces_N=300", "--param", "slide_m=0.25",
@@ -32,6 +33,7 @@ def test_the_dry_run_refuses_a_file_protocol_the_same_way_as_a_built_in(tmp_path
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_a_file_protocol_runs_on_the_simulated_rig_and_is_recorded(tmp_path):
     out = tmp_path / "steps.h5"
     r = rigctl("run", "--protocol-file", str(EXAMPLE), "--speed", "max", "--no-camera",
@@ -70,6 +72,7 @@ def test_an_unusable_protocol_file_is_one_line_and_exit_2(tmp_path, make, messag
     assert r.stderr.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_a_name_and_a_protocol_file_together_are_refused():
     r = rigctl("run", "tlre", "--protocol-file", str(EXAMPLE), "--dry-run")
     assert r.returncode == 2 and "not both" in r.stderr

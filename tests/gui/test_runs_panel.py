@@ -71,6 +71,7 @@ def test_a_finished_run_shows_its_whole_record_events_status_and_parameters(pane
     assert any("opened" in m for m in messages)
 
 
+@pytest.mark.slow
 def test_a_run_being_recorded_is_followed_as_it_grows(panel, qtbot, tmp_path):
     out = tmp_path / "growing.h5"
     proc = subprocess.Popen([sys.executable, "-m", "tests.gui.growing_run_writer", str(out), "12"],
@@ -146,6 +147,7 @@ def test_run_again_fills_the_protocols_tab_with_the_runs_protocol_and_parameters
         window.workbench.shutdown()
 
 
+@pytest.mark.slow
 def test_the_analysis_report_is_made_in_a_worker_process(panel, qtbot, finished_run, tmp_path):
     assert panel.open(finished_run)
     qtbot.waitUntil(lambda: panel._reader is None, timeout=TIMEOUT_MS)

@@ -26,6 +26,7 @@ def dark_tiles(png: Path, tile: int = 16) -> int:
     return int(dark.all(axis=(1, 3)).sum())
 
 
+@pytest.mark.slow
 def test_cli_writes_a_png_of_the_live_tab(tmp_path):
     out = tmp_path / "live.png"
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
@@ -41,6 +42,7 @@ def test_cli_writes_a_png_of_the_live_tab(tmp_path):
     assert not list(tmp_path.glob(".live.png.*"))  # no temporary file left
 
 
+@pytest.mark.slow
 def test_protocols_tab_is_pictured_and_a_bad_tab_refused(qtbot, tmp_path, capsys):
     out = tmp_path / "protocols.png"
     assert main(["--screenshot", str(out), "--tab", "Protocols", "--after", "2", "--speed", "max"]) == 0

@@ -229,3 +229,7 @@ class TestTrackWavinessContract(EffectContract):
     @pytest.mark.slow
     def test_every_parameter_runs_at_its_bounds_and_is_refused_beyond(self) -> None:
         super().test_every_parameter_runs_at_its_bounds_and_is_refused_beyond()
+
+    @pytest.mark.slow
+    def test_runs_are_deterministic_and_keep_no_state_on_the_instance(self) -> None:
+        super().test_runs_are_deterministic_and_keep_no_state_on_the_instance()

@@ -26,6 +26,7 @@ def first_cycle():
     return eng, ref
 
 
+@pytest.mark.slow
 def test_first_slip_time_peak_and_trough_agree(first_cycle):
     eng, ref = first_cycle
     assert [e.stage for e in eng.events] == ["initial", "stable"]
@@ -51,6 +52,7 @@ def test_force_samples_agree_over_the_first_cycle(first_cycle):
     np.testing.assert_allclose(eng.x_specimen_m, ref.x_specimen_m, rtol=0, atol=2e-9)
 
 
+@pytest.mark.slow
 def test_fast_drive_with_reversal_and_backward_slip():
     """At 1e-3 m/s the slips follow each other while the ~1.1 kHz ringing is still alive, and the
     reversal brings backward slips (negative thresholds, V returning to 0 from below)."""

@@ -227,6 +227,7 @@ def test_the_heap_check_finds_the_collections(small_run, tmp_path: Path) -> None
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(fraction=st.floats(0.0, 1.0, exclude_max=True))
 @pytest.mark.timeout(240)
+@pytest.mark.slow
 def test_a_file_cut_anywhere_gets_an_answer(small_run, tmp_path: Path, fraction: float) -> None:
     path, whole = small_run
     data = path.read_bytes()

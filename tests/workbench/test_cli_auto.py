@@ -84,6 +84,7 @@ def test_a_diagnosis_that_added_nothing_has_no_final_model_section(two_effects, 
     assert (tmp_path / "overlay_time.png").stat().st_size > 5000
 
 
+@pytest.mark.slow
 def test_auto_prints_the_error_at_each_step(two_effects, capsys):
     assert main(["model", "diagnose", str(two_effects), "--auto", "--workers", "2",
                  "--candidates", CANDIDATES]) == 0
@@ -115,6 +116,7 @@ def drifting_sensor(tmp_path_factory):
     return data, plugin
 
 
+@pytest.mark.slow
 def test_a_plugin_file_takes_part_on_the_command_line(drifting_sensor, capsys):
     data, plugin = drifting_sensor
     assert main(["model", "diagnose", str(data), "--json", "--workers", "2",
@@ -131,6 +133,7 @@ def test_a_plugin_file_takes_part_on_the_command_line(drifting_sensor, capsys):
     assert with_it["effects"] == ["force_sensor_drift"]
 
 
+@pytest.mark.slow
 def test_diagnose_on_a_local_dask_cluster_matches_local_processes(drifting_sensor, capsys):
     distributed = pytest.importorskip("distributed")
     data, plugin = drifting_sensor
@@ -150,6 +153,7 @@ def test_diagnose_on_a_local_dask_cluster_matches_local_processes(drifting_senso
         assert a["error"] == pytest.approx(b["error"], rel=1e-9)
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line(drifting_sensor, capsys):
     data, _ = drifting_sensor
     code = main(["model", "diagnose", str(data), "--candidates", "wear",
@@ -159,6 +163,7 @@ def test_an_unreachable_scheduler_is_one_line(drifting_sensor, capsys):
     assert len(err.splitlines()) == 1 and "scheduler" in err
 
 
+@pytest.mark.slow
 def test_diagnose_on_a_tls_scheduler(drifting_sensor, capsys, tmp_path):
     """A tls:// cluster takes the candidate fits with --tls-ca/--tls-cert/--tls-key; without them
     the connection is refused in one line (plain TCP to it cannot even start)."""

@@ -47,6 +47,7 @@ def test_compare_with_the_missing_effect_added_has_a_smaller_error(campaign, cap
     assert with_effect < 0.5 * without
 
 
+@pytest.mark.slow
 def test_diagnose_json_follows_the_contract_and_writes_a_report(campaign, tmp_path, capsys):
     report = tmp_path / "rep"
     code = main(["model", "diagnose", str(campaign), "--json", "--workers", "2",

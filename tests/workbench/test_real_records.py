@@ -40,6 +40,7 @@ def ens_comparison(ens_runs):  # type: ignore[no-untyped-def]
     return compare(ens_runs, PAPER)
 
 
+@pytest.mark.slow
 def test_spring_slider_drive_stiffness_is_found_near_the_stated_spring(ens_comparison) -> None:  # type: ignore[no-untyped-def]
     k0 = ens_comparison.fit.choice.values["k0_N_per_m"]
     assert abs(k0 / STATED_SPRING_N_PER_M - 1.0) < 0.30, k0
@@ -67,6 +68,7 @@ def test_spring_slider_model_enters_the_record_loaded(ens_comparison) -> None:  
         assert abs(res.ft_N[0]) > 0.3 * float(np.nanmedian(np.abs(run.events.features["peak_N"])))
 
 
+@pytest.mark.slow
 def test_tribometer_without_probes_is_fitted_at_its_own_scale() -> None:
     runs = load_runs([TRIBOMETER])
     cmp = compare(runs, PAPER)
@@ -87,6 +89,7 @@ def test_tribometer_without_probes_is_fitted_at_its_own_scale() -> None:
         assert name not in cmp.fit.feature_error
 
 
+@pytest.mark.slow
 def test_a_rig_description_fixes_and_bounds_parameters(tmp_path: Path) -> None:
     for f in ENS.glob("k168_v1100.csv"):
         (tmp_path / f.name).write_bytes(f.read_bytes())

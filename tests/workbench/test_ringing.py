@@ -106,6 +106,7 @@ def test_rings_at_scattered_phases_are_not_a_ringing():
     assert not campaign_ringing(few).resolved
 
 
+@pytest.mark.slow
 def test_this_rigs_own_campaign_and_instant_slips_show_no_ringing():
     """At 1024 Hz this rig's ringing is aliased (the preset's slip frequency is kept); the
     synthetic records' slips are instantaneous, with an apparent 130 Hz ringing after them."""
@@ -118,6 +119,7 @@ def test_this_rigs_own_campaign_and_instant_slips_show_no_ringing():
     assert not campaign_scale(prepare_dataset([quiet])).ringing.resolved
 
 
+@pytest.mark.slow
 def test_a_fit_keeps_the_mass_at_the_measured_ringing(heavy_rig):
     """Where the ringing is resolved and the mass not stated, the mass follows K0 + Kts at the
     measured frequency in every fit (identify.Objective), and the dataset says so."""
