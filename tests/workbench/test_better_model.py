@@ -14,6 +14,8 @@ from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 TRUTH = {"mu_s": 0.17, "mu_k": 0.12, "kts_N_per_m": 1.1e6, "k0_N_per_m": 1.25e6,
          "mu_smax": 0.21, "kt0_N_per_m": 1.7e6, "p_slope": 0.8}
 FREE = ("mu_s", "mu_k", "k0_N_per_m", "kts_N_per_m", "kt0_N_per_m", "mu_smax", "p_slope")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from rigctl.model import build_model
 from rigctl.model.plugins import load_effect_file
 from rigctl.records.dataset import prepare_dataset
@@ -9,6 +11,8 @@ from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.hidden import PLUGIN, TEST_BASE
+
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
 
 
 def test_control_without_hidden_effect_gives_none():

@@ -6,6 +6,8 @@ import pytest
 
 from tests.workbench.hidden import assert_found, hidden_effect_diagnosis
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 
 @pytest.mark.parametrize(("effect", "seed"), [
     ("interface_damping", 221),

@@ -8,7 +8,11 @@ single mu_k, and no load-dependent mu_k, can follow (rigctl/workbench/campaigns.
 
 from __future__ import annotations
 
+import pytest
+
 from tests.workbench.hidden import assert_found, hidden_effect_diagnosis
+
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
 
 
 def test_hidden_stribeck_is_found():

@@ -12,6 +12,8 @@ from rigctl.workbench.identify import free_params, least_squares_fit
 from rigctl.workbench.mass_search import refit_over_mass
 from rigctl.workbench.model_choice import ModelChoice
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 FREE = ["m_kg", "c0_N_s_per_m", "mu_s", "mu_k", "k0_N_per_m"]
 
 

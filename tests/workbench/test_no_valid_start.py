@@ -4,6 +4,8 @@ time limit)."""
 
 from __future__ import annotations
 
+import pytest
+
 from rigctl.model import build_model
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import fitting
@@ -12,6 +14,8 @@ from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.fitting import SWITCHED_OFF, CandidateTask, fit_candidate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
+
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
 
 
 def test_a_candidate_invalid_at_every_scan_point_is_switched_off_without_a_fit(monkeypatch):

@@ -13,6 +13,8 @@ from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 from tests.workbench.synth import another_rig_record
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 
 @pytest.fixture(scope="module")
 def dataset():

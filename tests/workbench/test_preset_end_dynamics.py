@@ -14,6 +14,8 @@ from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 PRESET_END = ModelChoice("paper").with_values({"mu_s": 0.21, "mu_k": 0.11})
 SCALED = ModelChoice("paper").with_values({"mu_s": 0.3, "mu_k": 0.2})
 

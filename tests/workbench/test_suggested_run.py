@@ -20,6 +20,8 @@ from rigctl.cli.main import main
 from rigctl.model import build_model
 from rigctl.workbench.campaigns import simulate_campaign, write_campaign
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 HIDDEN = "interface_damping"
 CANDIDATES = "interface_damping,rate_state"
 

@@ -22,6 +22,8 @@ from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import misses_most_slips
 from rigctl.workbench.model_choice import ModelChoice
 
+pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
+
 RIG = {"k0_N_per_m": 8.80e6, "kts_N_per_m": 1.16e8, "m_kg": 0.0153, "mu_s": 0.1334,
        "mu_k": 0.0805, "mu_smax": 0.1525, "kt0_N_per_m": 1.19e8, "c0_N_s_per_m": 7.35,
        "n_elements": 33}
