@@ -72,6 +72,10 @@ CONNECT_TIMEOUT_S = 30.0
 EXIT_GRACE_S = 2.0  # a worker that sent its result has this long to exit before it is killed
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
+_clock: Callable[[], float] = time.monotonic
+"""The clock of the local workers' time limits (seconds; a test replaces it to run the limits in
+virtual time)."""
+
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM arrived while tasks ran: the workers were killed; exit code 143 (128 + 15)."""
@@ -218,9 +222,9 @@ def _run_processes(
                 started.append(proc)
                 proc.start()
                 send.close()
-                running[i] = (proc, recv, time.monotonic())
+                running[i] = (proc, recv, _clock())
             ready = wait([c for _, c, _ in running.values()], timeout=0.2)
-            now = time.monotonic()
+            now = _clock()
             for i in list(running):
                 proc, conn, t0 = running[i]
                 if conn in ready:
