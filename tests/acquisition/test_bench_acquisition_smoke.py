@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from benchmarks import bench_acquisition
 
 
+@pytest.mark.slow
 def test_the_10x_case_records_at_ten_times_the_rig_rates(capsys):
     code = bench_acquisition.main(["--minutes", "0.06", "--cases", "rig-10x", "--json"])
     (r,) = json.loads(capsys.readouterr().out)

@@ -64,6 +64,7 @@ def test_three_equal_loadings_repeat_and_a_lower_one_does_not(tmp_path: Path) ->
     assert q.relative_error > 5 * rep["max Isum"].relative_error
 
 
+@pytest.mark.slow
 def test_runs_of_one_protocol_are_repetitions_in_the_campaign(tmp_path: Path) -> None:
     folder = tmp_path / "nlre"
     folder.mkdir()
@@ -87,6 +88,7 @@ def test_runs_of_one_protocol_are_repetitions_in_the_campaign(tmp_path: Path) ->
     assert doc["runs"][0]["loadings"][0]["fit_r2"] > 0.99
 
 
+@pytest.mark.slow
 def test_a_tlre_run_has_max_ft_max_isum_and_the_fit_per_pass(tmp_path: Path) -> None:
     res, run = two_passes()
     path = write_with_frames(tmp_path / "tlre.h5", res, run, rate_hz=15.0, protocol="TLRE")

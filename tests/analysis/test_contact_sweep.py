@@ -17,6 +17,7 @@ from tests.analysis.sim import one_pass
 FORCES_N = (150.0, 250.0, 350.0)
 
 
+@pytest.mark.slow
 def test_im1_against_fn_and_k1_when_the_runs_have_frames(tmp_path: Path) -> None:
     folder = tmp_path / "sweep"
     folder.mkdir()
@@ -40,6 +41,7 @@ def test_im1_against_fn_and_k1_when_the_runs_have_frames(tmp_path: Path) -> None
     assert "no camera frames" not in index.read_text()
 
 
+@pytest.mark.slow
 def test_a_sweep_without_frames_says_no_camera_frames(tmp_path: Path) -> None:
     folder = tmp_path / "csv"
     folder.mkdir()

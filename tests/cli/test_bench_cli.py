@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from rigctl.cli.main import main
 
 
+@pytest.mark.slow
 def test_bench_engine_quick_json(capsys):
     assert main(["bench", "engine", "--json", "--quick"]) == 0
     data = json.loads(capsys.readouterr().out)

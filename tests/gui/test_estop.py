@@ -24,6 +24,7 @@ SHORT_TLRE = {"repetitions": "1", "travel_m": "160e-6", "velocity_m_s": "1e-5",
 TIMEOUT_MS = 60_000
 
 
+@pytest.mark.slow
 def test_f12_mid_run_from_another_widget_stops_the_stages_and_aborts(qtbot, rig, tmp_path):
     window = MainWindow(default_config(), "sim", rig=rig)
     qtbot.addWidget(window)

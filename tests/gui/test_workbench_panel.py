@@ -39,6 +39,7 @@ def wait_idle(qtbot, panel: WorkbenchPanel) -> None:
     qtbot.waitUntil(lambda: not panel.job.running, timeout=FIT_TIMEOUT_MS)
 
 
+@pytest.mark.slow
 def test_adding_the_effect_the_ranking_finds_makes_the_error_fall(panel, qtbot, campaign):
     panel.set_data([str(campaign)])
     assert panel.compare_button.isEnabled()
@@ -72,6 +73,7 @@ def test_adding_the_effect_the_ranking_finds_makes_the_error_fall(panel, qtbot, 
     assert "-" in panel.log.toPlainText().splitlines()[-1]  # "(-97 % from ...)"
 
 
+@pytest.mark.slow
 def test_a_running_fit_is_cancelled_and_its_processes_end(panel, qtbot, campaign):
     panel.set_data([str(campaign)])
     panel.rank()  # every library effect: long enough to be caught running
@@ -100,6 +102,7 @@ def _alive(p: psutil.Process) -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_bad_data_is_an_error_in_the_log_and_the_status_bar(panel, qtbot, tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("t_s,ft_N\n0,1\n")

@@ -57,6 +57,7 @@ def _namespace_available() -> bool:
 
 
 @pytest.mark.skipif(not _namespace_available(), reason="needs `unshare -n` (root) to keep multicast local")
+@pytest.mark.slow
 def test_daq_streams_across_processes_on_udp_multicast() -> None:
     script = (
         "ip link set lo up && ip route add 239.0.0.0/8 dev lo && "

@@ -70,6 +70,7 @@ def test_the_valid_part_of_a_full_disk_run_is_read_with_a_warning(
     assert s.n_samples == n and s.duration_s == pytest.approx((n - 1) / 1024.0)
 
 
+@pytest.mark.slow
 def test_info_and_export_of_a_full_disk_run(full: tuple[Path, str], tmp_path: Path) -> None:
     path, _ = full
     n = read_run(path).n_samples

@@ -33,6 +33,7 @@ def whole(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.mark.parametrize("keep", [0, 100, 4096])
+@pytest.mark.slow
 def test_a_truncated_file_is_refused_at_once(whole: Path, tmp_path: Path, keep: int) -> None:
     data = whole.read_bytes()
     n = keep

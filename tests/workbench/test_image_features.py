@@ -90,6 +90,7 @@ def test_the_images_read_the_initial_stress_tilt(folder: Path, p_slope: float) -
         "p_tilt_initial"]
 
 
+@pytest.mark.slow
 def test_the_image_feature_lowers_the_uncertainty_of_p_slope(
     with_images: Comparison, rig_run: Path
 ) -> None:
@@ -108,6 +109,7 @@ def test_the_image_feature_lowers_the_uncertainty_of_p_slope(
     assert abs(v_img - 0.9) < max(3.0 * s_img, 0.02), (v_img, s_img)
 
 
+@pytest.mark.slow
 def test_compare_json_report_and_text_show_the_image_feature(
     with_images: Comparison, rig_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -127,6 +129,7 @@ def test_compare_json_report_and_text_show_the_image_feature(
     assert json.loads(capsys.readouterr().out)["image_features"][0]["name"] == str(rig_run)
 
 
+@pytest.mark.slow
 def test_a_run_without_frames_compares_as_before(with_images: Comparison, rig_run: Path) -> None:
     """The same samples without frames (a CSV-like run): no image entry, the same residual vector
     as the run file with its image feature removed, a note saying so; with frames every other

@@ -39,6 +39,7 @@ def test_a_long_record_is_cut_into_windows_spread_over_it(long_run) -> None:  # 
     assert any("long record" in note and "8 windows of 60 slips" in note for note in ds.notes)
 
 
+@pytest.mark.slow
 def test_a_long_record_of_another_rig_is_fitted_on_its_windows(long_run) -> None:  # type: ignore[no-untyped-def]
     windows = window_long_runs([long_run], max_slips=120, n_windows=4)
     cmp = compare(windows, ModelChoice("paper"))

@@ -87,6 +87,7 @@ def test_compare_excludes_the_saturated_delta_and_recovers_kts_and_mu_k(runs):
     _check_recovered(cmp)
 
 
+@pytest.mark.slow
 def test_a_run_file_is_read_with_its_over_range_events(runs, tmp_path):
     _raw, clipped, t_over = runs
     path = tmp_path / "tlre.h5"

@@ -18,6 +18,7 @@ from tests.workbench.synth import another_rig_record
 KEFF = 1.0 / (1.0 / R["k0_N_per_m"] + 1.0 / R["kts_N_per_m"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("rate_hz", "duration_s", "cycle_s"), [(100.0, 60.0, 2.0),
                                                                (20_000.0, 8.0, 0.5)])
 def test_a_record_of_another_rig_is_fitted_at_any_sample_rate(rate_hz: float, duration_s: float,
