@@ -100,6 +100,8 @@ def check_output_folder(path: Path, option: str) -> None:
 
 def _check_parent(path: Path, option: str) -> None:
     parent = path.parent if str(path.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise UsageError(f"{option} {path}: {parent} is not a folder (a file has its name)")
     if not parent.is_dir():
         raise UsageError(f"{option} {path}: the folder {parent} does not exist (create it first)")
     if not os.access(parent, os.W_OK | os.X_OK):
