@@ -19,6 +19,7 @@ KEFF = 1.0 / (1.0 / R["k0_N_per_m"] + 1.0 / R["kts_N_per_m"])
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # a full identification at 20 kHz: minutes on a 2-core machine
 @pytest.mark.parametrize(("rate_hz", "duration_s", "cycle_s"), [(100.0, 60.0, 2.0),
                                                                (20_000.0, 8.0, 0.5)])
 def test_a_record_of_another_rig_is_fitted_at_any_sample_rate(rate_hz: float, duration_s: float,
