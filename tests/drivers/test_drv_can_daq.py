@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+from drivers.can_daq import DEFAULT_FORCE_N_PER_COUNT as S
 from drivers.can_daq import CanDaq, CanDaqConfig
 from drivers.can_frames import pack_data
 from drivers.errors import (
@@ -150,9 +151,9 @@ def test_samples_scaled_and_timed_from_the_counter(rig: tuple[CanDaq, CanPeer]) 
     counter = cat(blocks, "counter")
     assert counter.tolist() == list(range(100, 110))
     np.testing.assert_allclose(cat(blocks, "t_s"), np.arange(10) / 1024.0)
-    np.testing.assert_allclose(cat(blocks, "fx_N"), 0.02 * np.arange(100, 110))
-    np.testing.assert_allclose(cat(blocks, "fy_N"), -0.04 * np.arange(100, 110))
-    np.testing.assert_allclose(cat(blocks, "fz_N"), 300.0)
+    np.testing.assert_allclose(cat(blocks, "fx_N"), S * np.arange(100, 110))
+    np.testing.assert_allclose(cat(blocks, "fy_N"), -2 * S * np.arange(100, 110))
+    np.testing.assert_allclose(cat(blocks, "fz_N"), S * 15_000)
     ain = np.concatenate([b.ain_V for b in blocks])
     np.testing.assert_allclose(ain[:, 0], 5.0)
     assert blocks[-1].dropped_total == 0 and daq.dropped_samples == 0
@@ -267,8 +268,8 @@ def test_channel_map_gives_ft_fn_d1_d2(rig: tuple[CanDaq, CanPeer]) -> None:
     peer.send_sample(0, (1000, 0, -15_000), (10_000, -5_000, 0))
     block = read_all(daq, 1)[0]
     cmap = ChannelMap(ft_axis="fx", fn_axis="fz", fn_sign=-1)
-    assert cmap.ft_N(block)[0] == pytest.approx(20.0)
-    assert cmap.fn_N(block)[0] == pytest.approx(300.0)
+    assert cmap.ft_N(block)[0] == pytest.approx(S * 1000)
+    assert cmap.fn_N(block)[0] == pytest.approx(S * 15_000)
     assert cmap.d1_m(block)[0] == pytest.approx(7.4e-6 * 10_000 * 10 / 32768)
     assert cmap.d2_m(block)[0] == pytest.approx(-7.4e-6 * 5_000 * 10 / 32768)
 
