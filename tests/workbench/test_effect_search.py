@@ -98,6 +98,10 @@ def test_the_best_better_end_of_each_model_is_kept(dataset, monkeypatch):
                                             in_process=True)[0] is worse
 
 
+@pytest.mark.xfail(strict=True, reason="the premise is gone: since the compiled reader (features "
+                   "equal to rounding) the local fit from 4 v_s ends at 1.33 v_s, not in the valley "
+                   "at 1.7 v_s this test needs; effect_search is to be replaced by the one search "
+                   "(issue 34)")
 def test_a_valley_the_local_fit_does_not_leave_is_left_by_refitting_from_another_value():
     """The preset's TLRE with a Stribeck law (v_s 5 mm/s): a fit started at four times v_s stops at
     1.7 times it, and fitting on gains nothing; the refit from a third of that value ends near the
