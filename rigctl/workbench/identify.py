@@ -302,7 +302,7 @@ class HybridJacobian:
             uj[j] += h
             diff = self.obj(uj) - f0
             col = diff / h
-            nxt = _next_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
+            nxt = next_fd_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
             if nxt is None:
                 break
             size = nxt
@@ -336,7 +336,7 @@ class HybridJacobian:
                 break  # pinned by validity both ways: no usable slope
             change = float(np.linalg.norm(diff))
             tried.append((abs(h), change, diff / h))
-            nxt = _next_step(h, change, grow_from_zero=True)
+            nxt = next_fd_step(h, change, grow_from_zero=True)
             if nxt is None:
                 linear = FD_CHANGE_MIN <= change <= FD_CHANGE_MAX
                 break
@@ -386,11 +386,13 @@ def _signed_step(u_j: float, size: float, lo: float, hi: float) -> float:
     return h
 
 
-def _next_step(h: float, change: float, *, grow_from_zero: bool) -> float | None:
-    """The next step size after step ``h`` moved the residual by ``change`` (scatter units): shrunk
-    above FD_CHANGE_MAX, grown below FD_CHANGE_MIN (from no change at all only with
-    ``grow_from_zero``: the step fell between two samples' worth of feature change), within
-    FD_STEP_MIN..FD_STEP_MAX; None when ``h`` is to be kept."""
+def next_fd_step(h: float, change: float, *, grow_from_zero: bool) -> float | None:
+    """The next forward-difference step size after step ``h`` (internal units) moved the residual
+    by ``change`` (its norm, scatter units): shrunk above FD_CHANGE_MAX, grown below FD_CHANGE_MIN
+    (from no change at all only with ``grow_from_zero``: the step fell between two samples' worth
+    of feature change), within FD_STEP_MIN..FD_STEP_MAX; None when ``h`` is to be kept. The rule
+    of every adaptive Jacobian column of the workbench: this module's solver and uncertainties,
+    and the one search's Jacobians (:mod:`rigctl.workbench.search`)."""
     if change > FD_CHANGE_MAX and abs(h) > FD_STEP_MIN:
         return max(abs(h) * FD_CHANGE_MAX / change, FD_STEP_MIN)
     if change < FD_CHANGE_MIN and abs(h) < FD_STEP_MAX and (change > 0.0 or grow_from_zero):

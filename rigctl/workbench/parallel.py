@@ -136,7 +136,7 @@ def run_tasks(
 def _child(fn: Callable[[Any], Any], task: Any, conn: Connection, parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's Terminated handler
-    _die_with_parent(parent_pid)
+    die_with_parent(parent_pid)
     threadpool_limits(1)  # for the worker's life: it is one of the parallel tasks
     try:
         payload: tuple[str, Any] = ("ok", fn(task))
@@ -151,11 +151,12 @@ def _child(fn: Callable[[Any], Any], task: Any, conn: Connection, parent_pid: in
     conn.close()
 
 
-def _die_with_parent(parent_pid: int) -> None:
+def die_with_parent(parent_pid: int) -> None:
     """Linux: have the kernel SIGKILL this process when its parent dies (whatever kills the parent,
     SIGKILL included); if the parent is already gone, exit now. Elsewhere nothing is done: the
     parent's clean-up (``finally`` and multiprocessing's exit handler for daemon processes) is all
-    there is."""
+    there is. Called first thing in a worker process: this module's task processes and the
+    search's evaluation pool (:mod:`rigctl.workbench.search_pool`)."""
     if not sys.platform.startswith("linux"):
         return
     with contextlib.suppress(OSError, AttributeError, TypeError):

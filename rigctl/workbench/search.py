@@ -66,9 +66,9 @@ from rigctl.workbench.identify import (
     FAILED_RESIDUAL,
     FD_STEP,
     FitResult,
-    _next_step,
     fn_range,
     free_params,
+    next_fd_step,
     physically_valid,
 )
 from rigctl.workbench.model_choice import ModelChoice
@@ -284,7 +284,7 @@ class _Search:
 
     def jacobian(self, x0: FloatArray, f0: FloatArray) -> FloatArray:
         """The residual's forward-difference Jacobian at ``x0`` (columns :attr:`cols`), each
-        column's step adapted as identify's solver adapts it (identify._next_step: until the
+        column's step adapted as identify's solver adapts it (identify.next_fd_step: until the
         residual moves by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units, at most FD_TRIES steps), and
         every column of a round evaluated in one batch. A step into a point that cannot be run
         is taken the other way; a column with no usable step is zero."""
@@ -315,7 +315,7 @@ class _Search:
                     continue
                 diff = o.vector - f0
                 J[:, j] = diff / h
-                nxt = _next_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
+                nxt = next_fd_step(h, float(np.linalg.norm(diff)), grow_from_zero=False)
                 if nxt is not None:
                     size[j] = nxt
                     again.append(j)

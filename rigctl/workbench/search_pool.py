@@ -10,7 +10,8 @@ dataset and the model once, so a task carries only a point; each worker
 * limits BLAS to one thread (``threadpoolctl``): the workers are the parallelism, and a BLAS
   pool per worker would put more busy threads than cores on the machine;
 * ignores SIGINT (Ctrl-C at a terminal reaches the whole process group; the parent handles it and
-  terminates the pool) and, on Linux, asks the kernel to kill it when its parent dies.
+  terminates the pool) and, on Linux, asks the kernel to kill it when its parent dies
+  (:func:`rigctl.workbench.parallel.die_with_parent`, as the diagnosis's task processes do).
 
 The parent waits for a batch in steps of :data:`POLL_S`, checking the budget's cancel flag
 (:meth:`~rigctl.workbench.budget.Budget.check`) between them; a cancel or Ctrl-C terminates every
@@ -22,14 +23,10 @@ between evaluations only.
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
-import ctypes.util
 import multiprocessing
 import os
 import pickle
 import signal
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -52,12 +49,12 @@ from rigctl.workbench.identify import (
     with_uncertainties,
 )
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.parallel import die_with_parent
 
 OK, TRAPPED, FAILED = "ok", "trapped", "failed"
 POLL_S = 0.1
 """The parent checks the cancel flag this often while workers run: a cancel is seen within a tenth
 of a second, far inside the 2 s a user waits for, at no cost."""
-PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 @dataclass(frozen=True)
@@ -131,7 +128,7 @@ _WORKER: dict[str, Any] = {}
 def _init_worker(dataset_pickle: bytes, choice: ModelChoice, free: tuple[FreeParam, ...],
                  parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    _die_with_parent(parent_pid)
+    die_with_parent(parent_pid)
     _WORKER["blas"] = threadpool_limits(limits=1)
     _WORKER["evaluator"] = _Evaluator(pickle.loads(dataset_pickle), choice, free)
 
@@ -144,17 +141,6 @@ def _evaluate_in_worker(point: Point) -> Outcome:
 def _finish_in_worker(task: FinishTask) -> FitResult:
     evaluator: _Evaluator = _WORKER["evaluator"]
     return evaluator.finish(task)
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """Linux: the kernel SIGKILLs this process when its parent dies; if it has died already, exit."""
-    if not sys.platform.startswith("linux"):
-        return
-    with contextlib.suppress(OSError, AttributeError, TypeError):
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    if os.getppid() != parent_pid:
-        os._exit(1)
 
 
 class EvaluationPool:
