@@ -1,6 +1,7 @@
 """The one search against the old identification chain, side by side, on held-out rigs.
 
-``python -m benchmarks.bench_search [--cases N] [--first I] [--seed S] [--workers N] [--jsonl FILE]``
+``python -m benchmarks.bench_search [--cases N] [--first I] [--seed S] [--workers N] [--jsonl FILE]
+[--which both|old|new]``
 
 Cases are drawn as :mod:`benchmarks.bench_other_rigs` draws them (its rig, campaign and noise
 generators; the same case for the same seed and index), restricted to controls and one-effect
@@ -133,15 +134,20 @@ def _new(dataset: Dataset, hidden: tuple[str, ...], workers: int) -> dict[str, A
             "message": res.message, "wall_s": wall}
 
 
-def run_case(i: int, seed: int, workers: int) -> dict[str, Any]:
+NOT_RUN = {"error": math.nan, "evaluations": 0, "reported": 0, "wall_s": math.nan}
+"""The row of a side not run (``--which``)."""
+
+
+def run_case(i: int, seed: int, workers: int, which: str = "both") -> dict[str, Any]:
     dataset, truth, hidden = draw_case(i, seed)
     try:
         truth_err = float(evaluate(dataset, truth).score.error)
     except (SimulationError, ParameterError):
         truth_err = math.nan
     return {"case": i, "seed": seed, "hidden": list(hidden), "n_events": dataset.n_events,
-            "truth_error": truth_err, "old": _old(dataset, hidden, workers),
-            "new": _new(dataset, hidden, workers)}
+            "truth_error": truth_err,
+            "old": _old(dataset, hidden, workers) if which != "new" else NOT_RUN,
+            "new": _new(dataset, hidden, workers) if which != "old" else NOT_RUN}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,11 +157,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--jsonl", default="")
+    ap.add_argument("--which", choices=("both", "old", "new"), default="both",
+                    help="run the old chain, the new search or both (the old chain's figures "
+                         "do not change with the search's code: one run of it serves to compare "
+                         "two versions of the search side by side)")
     args = ap.parse_args(argv if argv is not None else
                         [a for a in sys.argv[1:] if a not in ("--quick", "--json")])
     rows = []
     for i in range(args.first, args.first + args.cases):
-        row = run_case(i, args.seed, args.workers)
+        row = run_case(i, args.seed, args.workers, args.which)
         rows.append(row)
         line = json.dumps(row)
         print(line, flush=True)
