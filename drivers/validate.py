@@ -18,6 +18,8 @@ the protocols' ``ParamDef``, so that all of them refuse the same values with the
 from __future__ import annotations
 
 import math
+import sys
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,6 +63,48 @@ def bound_problem(
     return None
 
 
+@dataclass(frozen=True)
+class _Refusal:
+    """How one kind of check refuses a value: its error class and its words."""
+
+    error: type[SettingError] | type[InvalidValueError]
+    not_number: str
+    not_finite: str
+    out_of_bounds: str | None = None
+    """One phrase for every bound missed; None: :func:`bound_problem`'s phrase (``"must be > 0 s"``)."""
+
+
+_SETTING = _Refusal(SettingError, "must be a number", "must be finite")
+_ARGUMENT = _Refusal(InvalidValueError, "not a real number", "not finite")
+_COUNT = _Refusal(InvalidValueError, "must be an integer >= 1", "must be an integer >= 1",
+                  out_of_bounds="must be an integer >= 1")
+
+
+def _checked(
+    refusal: _Refusal,
+    owner: str,
+    key: str,
+    value: object,
+    number: float | None,
+    *,
+    unit: str = "",
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+) -> float:
+    """``number`` (``value`` as a float, None if it is not a number of the wanted kind) if it is
+    finite and within the bounds, else ``refusal.error`` naming ``owner``, ``key`` and ``value``."""
+    if number is None:
+        raise refusal.error(owner, key, value, refusal.not_number)
+    if not math.isfinite(number):
+        raise refusal.error(owner, key, value, refusal.not_finite)
+    problem = bound_problem(number, unit=unit, gt=gt, ge=ge, le=le, lt=lt)
+    if problem:
+        raise refusal.error(owner, key, value, refusal.out_of_bounds or problem)
+    return number
+
+
 def check_number(
     owner: str,
     key: str,
@@ -73,13 +117,8 @@ def check_number(
     lt: float | None = None,
 ) -> float:
     """``value`` as a float if it is a finite real number within the bounds, else :class:`SettingError`."""
-    number = real_number(value)
-    if number is None:
-        raise SettingError(owner, key, value, "must be a number")
-    problem = bound_problem(number, unit=unit, gt=gt, ge=ge, le=le, lt=lt)
-    if problem:
-        raise SettingError(owner, key, value, problem)
-    return number
+    return _checked(_SETTING, owner, key, value, real_number(value),
+                    unit=unit, gt=gt, ge=ge, le=le, lt=lt)
 
 
 def check_integer(owner: str, key: str, value: object, low: int, high: int) -> int:
@@ -107,23 +146,20 @@ def check_argument(
 ) -> float:
     """A command argument as a float if it is a finite real number within the bounds, else
     :class:`InvalidValueError` (``"not a real number"``, ``"not finite"``, ``"must be > 0"``)."""
-    number = real_number(value)
-    if number is None:
-        raise InvalidValueError(device, quantity, value, "not a real number")
-    if not math.isfinite(number):
-        raise InvalidValueError(device, quantity, value, "not finite")
-    problem = bound_problem(number, unit=unit, gt=gt, ge=ge, le=le, lt=lt)
-    if problem:
-        raise InvalidValueError(device, quantity, value, problem)
-    return number
+    return _checked(_ARGUMENT, device, quantity, value, real_number(value),
+                    unit=unit, gt=gt, ge=ge, le=le, lt=lt)
 
 
 def check_count(device: str, quantity: str, value: object) -> int:
     """A count argument (``max_samples``) as an int if it is an integer >= 1, else
     :class:`InvalidValueError`."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise InvalidValueError(device, quantity, value, "must be an integer >= 1")
-    return int(value)
+    count = int(value) if isinstance(value, int | np.integer) and not isinstance(value, bool) else None
+    # a Python int is unbounded: a count beyond float's range tests as float's largest magnitude
+    big = sys.float_info.max
+    number = None if count is None else float(min(max(count, -big), big))
+    _checked(_COUNT, device, quantity, value, number, ge=1.0)
+    assert count is not None  # refused above otherwise
+    return count
 
 
 def check_timeout(device: str, value: object, quantity: str = "timeout_s") -> float:
