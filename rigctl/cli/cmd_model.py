@@ -38,7 +38,9 @@ def _add_common(p: argparse.ArgumentParser) -> None:
                    help="effects to add to the base (comma-separated names)")
     p.add_argument("--effect-file", action="append", default=[], metavar="F.py",
                    help="plug-in effect file (repeatable); its effects become available")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--json", action="store_true",
+                   help="print the result as JSON on stdout (progress stays on stderr)")
+    p.add_argument("--quiet", action="store_true", help="print no progress on stderr")
     p.add_argument("--report", type=Path, metavar="DIR", help="write an HTML + PNG report here")
     add_plugins_argument(p)
 
@@ -114,7 +116,9 @@ def _load(args: argparse.Namespace) -> list[Any]:
 
 
 def _progress(args: argparse.Namespace) -> Any:
-    if args.json:
+    """Progress lines on stderr (with ``--json`` too: stdout holds the JSON alone), unless
+    ``--quiet``."""
+    if args.quiet:
         return None
     return lambda msg: print(msg, file=sys.stderr, flush=True)
 

@@ -66,6 +66,7 @@ from rigctl.workbench.residual_map import (
     residual_map,
     significant_trends,
 )
+from rigctl.workbench.round_eta import RoundClock
 
 MAX_BASE_RESTARTS = 2
 """Times a round is run again from a better fit of its own model (:func:`better_model`)."""
@@ -75,6 +76,8 @@ PRUNE_MAX_NFEV = FIT_ON_NFEV
 (one pass of the final model's polishing, :func:`polish`)."""
 COST_PROBE_S = 30.0  # seconds of the first run each candidate is timed on (several cycles)
 Progress = Callable[[str], None]
+FitListener = Callable[[str, FitResult], None]
+"""``on_fit(candidate, fit)``: a candidate's fit as it arrives (:func:`run_round`)."""
 
 
 @dataclass
@@ -279,26 +282,35 @@ def run_round(
     dataset: Dataset, model: FitResult, candidates: Sequence[str], *, workers: int | None,
     scheduler: Any, progress: Progress | None, timeout_s: float = DEFAULT_TIMEOUT_S,
     in_process: bool = False, carried: Mapping[str, FitResult] | None = None,
+    on_fit: FitListener | None = None,
 ) -> Round:
     """Fit every candidate on ``model`` and rank them. ``carried`` holds candidate fits of the
     same round before the model was refitted (:func:`better_model`): where one of them reached a
     lower error than its fit from the new model, it is kept (the candidate's error is that of a
-    full model on the same data, whatever point its fit started from)."""
+    full model on the same data, whatever point its fit started from). ``on_fit`` is called with
+    each candidate's fit as it arrives (the GUI shows a plug-in's values during the round)."""
     candidates, costs = cost_order(dataset, model, candidates)
     tasks = [CandidateTask(dataset, model, c) for c in candidates]
+    clock = RoundClock(costs)
 
     def done(i: int, res: FitResult | TaskFailed) -> None:
+        if on_fit is not None:
+            fit = keep_better(res, (carried or {}).get(candidates[i]))
+            if isinstance(fit, FitResult):
+                on_fit(candidates[i], fit)
         if not progress:
             return
+        where = clock.finished(i)
         kept = keep_better(res, (carried or {}).get(candidates[i]))
         keeps = (f"; keeps its fit from before the refit, error {kept.error:.3g}"
                  if isinstance(kept, FitResult) and kept is not res else "")
         if isinstance(res, TaskFailed):
-            progress(f"  {candidates[i]}: fit failed: {res.message.splitlines()[0]}{keeps}")
+            progress(f"  {candidates[i]}: fit failed: {res.message.splitlines()[0]}{keeps} "
+                     f"{where}")
         else:
             progress(f"  fitted {candidates[i]}: error {res.error:.3g} "
                      f"(base {model.error:.3g}; {res.n_evaluations} simulations, "
-                     f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s){keeps}")
+                     f"{res.elapsed_s:.1f} s, {res.cpu_s:.1f} CPU s){keeps} {where}")
 
     outcomes = run_tasks(fit_candidate, tasks, workers=workers, scheduler=scheduler,
                          on_done=done, timeout_s=timeout_s, in_process=in_process,
@@ -351,8 +363,10 @@ def diagnose(
     baseline: FitResult | None = None,
     timeout_s: float = DEFAULT_TIMEOUT_S,
     in_process: bool = False,
+    on_fit: FitListener | None = None,
 ) -> Diagnosis:
-    """Rank candidate effects for ``choice`` on ``dataset`` (see the module docstring)."""
+    """Rank candidate effects for ``choice`` on ``dataset`` (see the module docstring);
+    ``on_fit``: each candidate's fit as it arrives (:func:`run_round`)."""
     say = progress or (lambda _msg: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")
@@ -367,7 +381,7 @@ def diagnose(
     while True:
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
                         progress=progress, timeout_s=timeout_s, in_process=in_process,
-                        carried=carried)
+                        carried=carried, on_fit=on_fit)
         _remember(tried, rnd.fits, model.error)
         better = better_model(dataset, model, rnd.fits) if restarts < MAX_BASE_RESTARTS else None
         if better is not None:

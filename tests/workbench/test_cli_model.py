@@ -23,7 +23,9 @@ def campaign(tmp_path_factory):
 
 def test_compare_json_gives_the_error_per_feature_and_parameters(campaign, capsys):
     assert main(["model", "compare", str(campaign), "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    cap = capsys.readouterr()
+    assert "identifying paper" in cap.err  # progress on stderr, with --json too
+    out = json.loads(cap.out)
     assert out["model"] == "paper" and out["error"] > 0
     assert {"peak_N", "trough_N", "ring_N", "stick_s"} <= set(out["feature_errors"])
     fe = out["feature_errors"]["peak_N"]
@@ -124,3 +126,11 @@ def test_compare_fits_its_starts_with_the_workers_asked(campaign, monkeypatch, c
     capsys.readouterr()
     assert main(["model", "compare", str(campaign), "--workers", "0"]) == 2
     assert "--workers must be at least 1" in capsys.readouterr().err
+
+
+
+def test_json_keeps_stdout_for_the_result_and_quiet_silences_the_progress(campaign, capsys):
+    assert main(["model", "compare", str(campaign), "--json", "--no-fit", "--quiet"]) == 0
+    cap = capsys.readouterr()
+    json.loads(cap.out)  # stdout is the JSON alone
+    assert cap.err == ""
