@@ -5,21 +5,28 @@ into windows by :func:`rigctl.records.long_records.window_long_runs`) and calls 
 public functions: :func:`~rigctl.workbench.compare.compare` (``rigctl model compare``) and
 :func:`~rigctl.workbench.diagnose.diagnose` (``rigctl model diagnose``). What goes back to the window
 is small and picklable: overlays decimated to ``OVERLAY_POINTS`` per curve
-(:func:`~rigctl.gui.decimate.peak_indices`), the residual map as a matrix, the ranking as rows.
+(:func:`~rigctl.gui.decimate.peak_indices`), the residual map as a matrix, the ranking as rows, the
+plug-in candidates' fitted parameters with their uncertainties (:class:`CandidateParams`: during the
+round as progress lines, since a progress report is text; after it in the view).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from rigctl.gui.decimate import FloatArray, peak_indices
 
 if TYPE_CHECKING:
     from rigctl.gui.process_job import Report
+    from rigctl.records.dataset import Dataset
     from rigctl.workbench.compare import Comparison
+    from rigctl.workbench.identify import FitResult
     from rigctl.workbench.model_choice import ModelChoice
 
 OVERLAY_POINTS = 5000
@@ -96,6 +103,66 @@ class RankingRow:
 
 
 @dataclass(frozen=True)
+class ParamValue:
+    """One fitted parameter of a candidate effect (its name without the effect's prefix)."""
+
+    name: str
+    value: float
+    sigma: float | None
+    """1-sigma uncertainty (:func:`rigctl.workbench.identify.uncertainties`); None where none
+    was computed (a candidate fit takes no covariance: shown as ``±?``)."""
+    unit: str
+    undetermined: bool = False
+
+    def text(self) -> str:
+        """``0.0312 ± 0.0021`` (``± ?`` without an uncertainty)."""
+        sig = "?" if self.sigma is None or not math.isfinite(self.sigma) else f"{self.sigma:.2g}"
+        unit = "" if self.unit in ("", "-") else f" {self.unit}"
+        flag = " (not determined)" if self.undetermined else ""
+        return f"{self.value:.4g} ± {sig}{unit}{flag}"
+
+
+@dataclass(frozen=True)
+class CandidateParams:
+    """A plug-in candidate's fitted parameters, as the tab shows them during and after a round."""
+
+    effect: str
+    error: float
+    params: tuple[ParamValue, ...]
+    final: bool
+    """False: the candidate fit as it arrived (no uncertainties); True: with the uncertainties of
+    a Jacobian taken at its fitted values (:func:`rigctl.workbench.identify.with_uncertainties`)."""
+    note: str = ""
+
+    def line(self) -> str:
+        values = ", ".join(f"{p.name} = {p.text()}" for p in self.params)
+        note = f"; {self.note}" if self.note else ""
+        return f"{self.effect} (error {self.error:.3g}): {values}{note}"
+
+    def to_text(self) -> str:
+        """As the worker reports it (:data:`PARAMS_TAG` + JSON): progress is text."""
+        return PARAMS_TAG + json.dumps({
+            "effect": self.effect, "error": self.error, "final": self.final, "note": self.note,
+            "params": [[p.name, p.value, p.sigma, p.unit, p.undetermined] for p in self.params]})
+
+    @staticmethod
+    def from_text(text: str) -> CandidateParams | None:
+        """The inverse of :meth:`to_text`; None for any other progress line."""
+        if not text.startswith(PARAMS_TAG):
+            return None
+        d = json.loads(text[len(PARAMS_TAG):])
+        params = tuple(ParamValue(str(n), float(v), None if s is None else float(s), str(u),
+                                  bool(und)) for n, v, s, u, und in d["params"])
+        return CandidateParams(str(d["effect"]), float(d["error"]), params, bool(d["final"]),
+                               str(d["note"]))
+
+
+PARAMS_TAG = "candidate parameters: "
+"""Progress lines that carry a plug-in candidate's fitted parameters (:meth:`CandidateParams.
+to_text`); the tab shows them in its table and logs them in words."""
+
+
+@dataclass(frozen=True)
 class DiagnoseView:
     """A diagnosis round: the model's error, the candidates ranked by evidence, the verdict."""
 
@@ -107,6 +174,8 @@ class DiagnoseView:
     unexplained: str
     suggest: str | None
     discrepancies: list[str]
+    plugin_params: list[CandidateParams] = field(default_factory=list)
+    """The plug-in candidates' fitted parameters with their uncertainties."""
 
 
 def load(paths: Sequence[str]) -> list[Any]:
@@ -150,13 +219,68 @@ def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, .
         done[0] += finished
         report(msg.strip(), done[0] / len(names) if done[0] else math.nan)
 
-    diag = diagnose(dataset, choice, candidates=names, workers=workers, progress=progress)
+    plugins = plugin_names(names)
+
+    def on_fit(name: str, fit: FitResult) -> None:
+        if name in plugins:  # shown at once, without uncertainties (a candidate fit takes none)
+            report(candidate_params(name, fit, final=False).to_text(), math.nan)
+
+    diag = diagnose(dataset, choice, candidates=names, workers=workers, progress=progress,
+                    on_fit=on_fit)
     r0 = diag.first
     rows = [RankingRow(s.effect, s.error, s.error_reduction, s.delta_bic, s.significant, s.explains)
             for s in r0.ranking]
+    shown = []
+    for name in plugins:
+        fit = r0.fits.get(name)
+        if fit is None:
+            continue
+        report(f"uncertainties of {name}'s parameters ({len(fit.free) + 1} simulations or more)",
+               math.nan)
+        cp = plugin_uncertainties(dataset, name, fit)
+        report(cp.to_text(), math.nan)
+        shown.append(cp)
     v = r0.verdict
     return DiagnoseView(r0.model.choice.label(), r0.model.error, rows, v.verdict,
-                        list(v.candidates), v.unexplained, v.suggest, list(r0.discrepancies))
+                        list(v.candidates), v.unexplained, v.suggest, list(r0.discrepancies),
+                        shown)
+
+
+def plugin_names(names: Sequence[str]) -> list[str]:
+    """The candidates that are not the library's (plug-in files and entry points)."""
+    from rigctl.model.effects import LIBRARY
+
+    return [n for n in names if n not in LIBRARY]
+
+
+def candidate_params(effect: str, fit: FitResult, final: bool, note: str = "") -> CandidateParams:
+    """``effect``'s fitted parameters of ``fit`` with the uncertainties it carries (none: None)."""
+    prefix = f"{effect}."
+    table = fit.choice.parameter_table()
+    params = tuple(
+        ParamValue(p.name[len(prefix):], float(p.value), fit.sigma.get(p.name), p.unit,
+                   p.name in fit.undetermined)
+        for p in table if p.name.startswith(prefix) and p.name in fit.free)
+    return CandidateParams(effect, float(fit.error), params, final, note)
+
+
+def plugin_uncertainties(dataset: Dataset, effect: str, fit: FitResult) -> CandidateParams:
+    """``effect``'s parameters with uncertainties from a Jacobian of all the fit's free parameters
+    at its values (:func:`~rigctl.workbench.identify.with_uncertainties`: the covariance
+    s^2 (J^T J)^-1, so the effect's sigma includes its correlation with the base parameters); the
+    values alone (``±?``) where the fit switched the effect off or the Jacobian cannot be taken."""
+    from rigctl.errors import SimulationError
+    from rigctl.model import ParameterError
+    from rigctl.workbench.fitting import SWITCHED_OFF
+    from rigctl.workbench.identify import with_uncertainties
+
+    if fit.message.startswith(SWITCHED_OFF):
+        return candidate_params(effect, fit, final=True, note="switched off: it does not improve "
+                                "the fit")
+    try:
+        return candidate_params(effect, with_uncertainties(dataset, fit), final=True)
+    except (SimulationError, ParameterError, ValueError, np.linalg.LinAlgError) as exc:
+        return candidate_params(effect, fit, final=True, note=f"no uncertainty: {exc}")
 
 
 def compare_view(cmp: Comparison) -> CompareView:

@@ -4,7 +4,9 @@ Pick runs (``.h5``/``.csv``) or a campaign folder; **Compare** identifies the mo
 effects added so far) on them and shows measurement against model (Ft against time, Ft against delta),
 the residual map (how each slip feature's misfit trends with each covariate) and where the model
 fails, in words. **Rank candidates** fits every effect of the library and the plug-ins on top of the
-model and ranks them by evidence (``rigctl model diagnose``). **Add effect** (a library effect, or one
+model and ranks them by evidence (``rigctl model diagnose``); each plug-in candidate's fitted
+parameters appear under the ranking as its fit ends, with their uncertainties once the round is
+over. **Add effect** (a library effect, or one
 of a plug-in file loaded with **Plug-in file…**) re-identifies the model with it; the error history
 chart shows the error after each step, falling as the right effects are added.
 
@@ -46,6 +48,7 @@ from PySide6.QtWidgets import (
 
 from rigctl.gui.process_job import ProcessJob
 from rigctl.gui.workbench_jobs import (
+    CandidateParams,
     CompareView,
     DiagnoseView,
     ModelRequest,
@@ -92,6 +95,9 @@ class WorkbenchPanel(QWidget):
         """(model, error) after each compare: the error history chart."""
         self.view: CompareView | None = None
         self.diagnosis: DiagnoseView | None = None
+        self.plugin_params: dict[str, CandidateParams] = {}
+        """Each plug-in candidate's fitted parameters, as they arrived (during a round) or with
+        their uncertainties (after it)."""
         self.job = ProcessJob(self)
         self.job.progress.connect(self._on_progress)
         self.job.finished.connect(self._on_finished)
@@ -216,11 +222,26 @@ class WorkbenchPanel(QWidget):
         self.ranking_table.itemSelectionChanged.connect(self._ranking_selected)
         self.verdict_label = QLabel()
         self.verdict_label.setWordWrap(True)
+        self.plugin_label = QLabel("<b>Plug-in candidates: fitted parameters</b> (± 1 sigma; "
+                                   "±? until the round ends and the uncertainties are taken)")
+        self.plugin_label.setWordWrap(True)
+        self.plugin_table = QTableWidget(0, 4)
+        self.plugin_table.setHorizontalHeaderLabels(["plug-in", "parameter", "value ± sigma",
+                                                     "fit error"])
+        self.plugin_table.verticalHeader().setVisible(False)
+        self.plugin_table.horizontalHeader().setStretchLastSection(True)
+        self.plugin_table.setToolTip("each plug-in candidate's own parameters as its fit ends "
+                                     "(base parameters fitted with them); the 1-sigma uncertainty "
+                                     "from the linearised covariance at the fitted values, taken "
+                                     "after the round")
         ranking_page = QWidget()
         rl = QVBoxLayout(ranking_page)
         rl.setContentsMargins(0, 0, 0, 0)
         rl.addWidget(self.verdict_label)
-        rl.addWidget(self.ranking_table, 1)
+        rl.addWidget(self.ranking_table, 3)
+        rl.addWidget(self.plugin_label)
+        rl.addWidget(self.plugin_table, 2)
+        self._show_plugin_params()
         self.params_table = QTableWidget(0, 3)
         self.params_table.setHorizontalHeaderLabels(["parameter", "value ± sigma", "unit"])
         self.params_table.verticalHeader().setVisible(False)
@@ -331,6 +352,8 @@ class WorkbenchPanel(QWidget):
         self.residual_table.setRowCount(0)
         self.fails_view.clear()
         self.params_table.setRowCount(0)
+        self.plugin_params.clear()
+        self._show_plugin_params()
         self.run_combo.clear()
 
     def _browse_plugin(self) -> None:
@@ -395,6 +418,8 @@ class WorkbenchPanel(QWidget):
             self._error(f"{self.job.name} is still running (wait or cancel it)")
             return False
         self._pending = None
+        self.plugin_params.clear()
+        self._show_plugin_params()
         self._start(f"rank candidates on {self.request.label()}", diagnose_job, self.request,
                     candidates, self.workers)
         return True
@@ -415,6 +440,12 @@ class WorkbenchPanel(QWidget):
         return self.job.cancel()
 
     def _on_progress(self, text: str, fraction: float) -> None:
+        params = CandidateParams.from_text(text)
+        if params is not None:  # a plug-in candidate's parameters, not a line of progress
+            self.plugin_params[params.effect] = params
+            self._show_plugin_params()
+            self.log.appendPlainText(f"{time.strftime('%H:%M:%S')}    {params.line()}")
+            return
         if math.isfinite(fraction):
             self.progress.setRange(0, 1000)
             self.progress.setValue(round(1000 * fraction))
@@ -539,8 +570,30 @@ class WorkbenchPanel(QWidget):
                 t.setItem(i, j, item)
         t.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
 
+    def _show_plugin_params(self) -> None:
+        """The plug-in candidates' parameters: one row each, the effect named on its first."""
+        rows = [(cp, i, pv) for cp in self.plugin_params.values()
+                for i, pv in enumerate(cp.params)]
+        t = self.plugin_table
+        t.setRowCount(len(rows))
+        for r, (cp, i, pv) in enumerate(rows):
+            state = "" if cp.final else "  (fitting: no uncertainty yet)"
+            note = f"  {cp.note}" if cp.note and i == 0 else ""
+            cells = (cp.effect if i == 0 else "", pv.name, pv.text(),
+                     f"{cp.error:.3g}{state}{note}" if i == 0 else "")
+            for c, text in enumerate(cells):
+                t.setItem(r, c, _item(text, text if c == 3 else ""))
+        t.resizeColumnsToContents()
+        t.horizontalHeader().setStretchLastSection(True)
+        shown = bool(rows)
+        self.plugin_label.setVisible(shown)
+        t.setVisible(shown)
+
     def _show_ranking(self, d: DiagnoseView) -> None:
         self.diagnosis = d
+        for cp in d.plugin_params:
+            self.plugin_params[cp.effect] = cp
+        self._show_plugin_params()
         t = self.ranking_table
         t.setRowCount(len(d.rows))
         for r, s in enumerate(d.rows):
