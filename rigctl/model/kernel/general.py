@@ -26,12 +26,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from rigctl.model.friction_laws import (
-    element_stiffness,
-    mu_kinetic_base,
-    mu_static,
-    stribeck_amplitude,
-)
+from rigctl.model.friction_laws import element_stiffness, mu_static
 from rigctl.model.kernel.forces import drive_force
 from rigctl.model.kernel.free_step import free_step
 from rigctl.model.kernel.global_slip import (
@@ -40,22 +35,22 @@ from rigctl.model.kernel.global_slip import (
     note_slip_speed,
     start_global_slip,
 )
-from rigctl.model.kernel.inputs import Segment, interp, segment_at, slope
-from rigctl.model.kernel.nonlinear_slip import rk_step_s, stribeck_law
-from rigctl.model.kernel.output import write_sample
+from rigctl.model.kernel.inputs import Segment, segment_at
+from rigctl.model.kernel.nonlinear_slip import (
+    AGING_STEP_LIMIT,
+    aging_limited_step,
+    kinetic_mu,
+    rk_step_s,
+    slip_friction,
+    stribeck_law,
+)
+from rigctl.model.kernel.walk import STEP, apart, current_knot, step_end, write_due_sample
 from rigctl.model.layout import (
-    FN_CONTACT_MIN_N,
     I_CHATTER,
     I_GSLIP,
-    I_KNOT,
-    I_NEVENT,
-    I_OUT,
     I_SIGN,
     I_STAGE,
     I_TERM_ERR,
-    K_FN,
-    K_T,
-    K_XS,
     MAX_STEPS_PER_SAMPLE,
     O_FI,
     P_CINT,
@@ -67,8 +62,6 @@ from rigctl.model.layout import (
     P_RS_DC,
     P_TAU_S,
     P_VS,
-    RET_DONE,
-    RET_EVENT_TABLE_FULL,
     RET_SLIP_END,
     RET_TERM_ERROR,
     S_K_USED,
@@ -83,7 +76,6 @@ from rigctl.model.layout import (
 )
 
 BISECT_STEPS = 50  # halvings of an RK4 step (~18 us) locating an event: below 1e-19 s
-AGING_STEP_LIMIT = 2.0  # as in nonlinear_slip: |V| h <= 2 Dc keeps the aging law's RK4 stable
 
 
 @njit(cache=True, inline="always")
@@ -136,18 +128,11 @@ def _rhs(cp: np.ndarray, terms: Any, gslip: bool, sign: int, stage: int, gsum: f
     (docs/model.md, sections 1-3)."""
     fe = fn + cp[P_KAPPA] * cp[P_K0] * (xs - x)
     fd = drive_force(cp, xs, vs, x, v)
-    va = abs(v)
     dth = 1.0
     de = 0.0
     if gslip:
-        mu = mu_kinetic_base(cp, fn, va, th)
-        if cp[P_VS] > 0.0:
-            mu += min(e, stribeck_law(cp, fn, va))
-            de = element_stiffness(cp, 1, fn, 1) * va / max(fe, FN_CONTACT_MIN_N)
-        mu = friction_chain(terms, mu, x, v, t, fe, 0.0, z)
-        fi = sign * mu * fe
-        if cp[P_RS_A] != 0.0 or cp[P_RS_B] != 0.0:
-            dth = 1.0 - va * th / cp[P_RS_DC]
+        mu, dth, de = slip_friction(cp, fn, fe, abs(v), th, e)
+        fi = sign * friction_chain(terms, mu, x, v, t, fe, 0.0, z) * fe
     else:
         fi = gsum + kst * x
         if spm != 0.0:
@@ -202,7 +187,7 @@ def _rk4(cp: np.ndarray, terms: Any, gslip: bool, sign: int, stage: int, gsum: f
 
 
 @njit(cache=True, inline="always")
-def _element_mu(cp: np.ndarray, terms: Any, mus0: float, t: float, x: float, v: float,
+def _element_mu(terms: Any, mus0: float, t: float, x: float, v: float,
                 fe: float, z: np.ndarray, tstick: np.ndarray, i: int, last_t0: float,
                 last_mu: float) -> float:
     """mu_s,eff of element i (its stick time t - tstick[i]); reuses last_mu when the element
@@ -210,6 +195,28 @@ def _element_mu(cp: np.ndarray, terms: Any, mus0: float, t: float, x: float, v: 
     if tstick[i] == last_t0:
         return last_mu
     return friction_chain(terms, mus0, x, v, t, fe, t - tstick[i], z)
+
+
+@njit(cache=True, inline="always")
+def _stuck_crossing(terms: Any, mus0: float, t: float, x: float, v: float, fe: float,
+                    z: np.ndarray, tstick: np.ndarray, i: int, share: float, g_i: float, k: float,
+                    last_t0: float, last_mu: float) -> tuple[int, float]:
+    """(+1 or -1 when stuck element i has reached its static threshold mu_s,eff P_i m_i Fn_eff
+    in that direction, else 0; its mu_s,eff). Its force is g_i + k X (``share`` = P_i m_i)."""
+    mu_i = _element_mu(terms, mus0, t, x, v, fe, z, tstick, i, last_t0, last_mu)
+    c = mu_i * share * fe
+    f = g_i + k * x
+    if f >= c:
+        return 1, mu_i
+    if f <= -c:
+        return -1, mu_i
+    return 0, mu_i
+
+
+@njit(cache=True, inline="always")
+def _reverses(mode_i: int, v: float) -> bool:
+    """A presliding element's velocity has turned against its direction: it sticks again."""
+    return (mode_i > 0 and v < 0.0) or (mode_i < 0 and v > 0.0)
 
 
 @njit(cache=True)
@@ -226,14 +233,12 @@ def _event(cp: np.ndarray, weights: np.ndarray, terms: Any, g: np.ndarray, mode:
     last_mu = 0.0
     for i in range(g.shape[0]):
         if mode[i] == 0:
-            mu_i = _element_mu(cp, terms, mus0, t, x, v, fe, z, tstick, i, last_t0, last_mu)
+            d, last_mu = _stuck_crossing(terms, mus0, t, x, v, fe, z, tstick, i, pw[i], g[i], k,
+                                         last_t0, last_mu)
             last_t0 = tstick[i]
-            last_mu = mu_i
-            c = mu_i * pw[i] * fe
-            f = g[i] + k * x
-            if f >= c or f <= -c:
+            if d != 0:
                 return True
-        elif (mode[i] > 0 and v < 0.0) or (mode[i] < 0 and v > 0.0):
+        elif _reverses(mode[i], v):
             return True
     return False
 
@@ -258,18 +263,13 @@ def _apply_stick_events(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: np.
     last_mu = 0.0
     for i in range(g.shape[0]):
         if mode[i] == 0:
-            mu_i = _element_mu(cp, terms, mus0, t, x, v, fe, z, tstick, i, last_t0, last_mu)
+            d, last_mu = _stuck_crossing(terms, mus0, t, x, v, fe, z, tstick, i, pw[i], g[i], k,
+                                         last_t0, last_mu)
             last_t0 = tstick[i]
-            last_mu = mu_i
-            c = mu_i * pw[i] * fe
-            f = g[i] + k * x
-            if f >= c:
-                mode[i] = 1
-            elif f <= -c:
-                mode[i] = -1
-            else:
+            mode[i] = d
+            if d == 0:
                 n_left += 1
-        elif (mode[i] > 0 and v < 0.0) or (mode[i] < 0 and v > 0.0):
+        elif _reverses(mode[i], v):
             g[i] = mode[i] * mus_sl * pw[i] * fe - k * x  # it sticks again keeping its force
             mode[i] = 0
             tstick[i] = t
@@ -291,10 +291,7 @@ def _end_slip(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: np.ndarray, i
     t = fs[S_T]
     th = fs[S_THETA]
     fe = fn + cp[P_KAPPA] * cp[P_K0] * (xs - x)
-    muk = mu_kinetic_base(cp, fn, 0.0, th)
-    if cp[P_VS] > 0.0:
-        muk += min(fs[S_STRIB], stribeck_amplitude(cp, fn))
-    muk = friction_chain(terms, muk, x, 0.0, t, fe, 0.0, z)
+    muk = friction_chain(terms, kinetic_mu(cp, fn, 0.0, th, fs[S_STRIB]), x, 0.0, t, fe, 0.0, z)
     mus = friction_chain(terms, mu_static(cp, 1, fn, th), x, 0.0, t, fe, 0.0, z)
     end_global_slip(cp, weights, fs, ist, g, mode, ev, xs, vs, fn)
     k = fs[S_K_USED]
@@ -342,8 +339,8 @@ def general_step(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: np.ndarray
         e = fs[S_STRIB]
         fn_a = fn0 + fn1 * tloc
         hs = min(h_rk, h - tloc)
-        if gslip and aging and abs(v) * hs > AGING_STEP_LIMIT * cp[P_RS_DC]:
-            hs = AGING_STEP_LIMIT * cp[P_RS_DC] / abs(v)
+        if gslip and aging:
+            hs = aging_limited_step(cp, v, hs)
         k = 0.0
         gsum = 0.0
         kst = 0.0
@@ -442,9 +439,7 @@ def interface_force_terms(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: n
     th = fs[S_THETA]
     fe = fn + cp[P_KAPPA] * cp[P_K0] * (xs - x)
     if ist[I_GSLIP] == 1:
-        mu = mu_kinetic_base(cp, fn, abs(v), th)
-        if cp[P_VS] > 0.0:
-            mu += min(fs[S_STRIB], stribeck_law(cp, fn, abs(v)))
+        mu = kinetic_mu(cp, fn, abs(v), th, fs[S_STRIB])
         return ist[I_SIGN] * friction_chain(terms, mu, x, v, t, fe, 0.0, z) * fe
     stage = ist[I_STAGE]
     pw = weights[stage]
@@ -487,41 +482,23 @@ def advance_terms(
     The same arrays and return codes, plus the terms (:meth:`rigctl.model.terms.TermSet.bundle`),
     each element's stick start time ``tstick`` and the plug-ins' state ``z``; RET_TERM_ERROR when
     a term made the state non-finite (the state is left at the last finite step)."""
-    n_out = t_out.shape[0]
-    nk = knots.shape[1]
-    kt_t = knots[K_T]
     h_rk = rk_step_s(cp)
     zw = np.zeros((6, z.shape[0]))
     while True:
-        t = fs[S_T]
-        j = ist[I_KNOT]
-        while j < nk - 2 and kt_t[j + 1] <= t:
-            j += 1
-        ist[I_KNOT] = j
-        io = ist[I_OUT]
-        if io < n_out and t_out[io] <= t:
-            xs = interp(knots, K_XS, j, t)
-            fn = max(interp(knots, K_FN, j, t), 0.0)
-            vs = slope(knots, K_XS, j)
-            write_sample(
-                cp, weights, fs, ist, g, mode, io, xs, vs, fn, out, flags, elem, record_elements
-            )
+        j = current_knot(knots, fs, ist)
+        io, xs, fn = write_due_sample(cp, weights, fs, ist, g, mode, knots, j, t_out, out, flags,
+                                      elem, record_elements)
+        if io >= 0:
             out[O_FI, io] = interface_force_terms(cp, weights, terms, fs, ist, g, mode, tstick,
                                                   xs, fn, z)
-            ist[I_OUT] = io + 1
             continue
-        if t >= t_stop:
-            return RET_DONE
-        if ist[I_NEVENT] >= ev.shape[0] - 1:
-            return RET_EVENT_TABLE_FULL
-        target = min(t_stop, kt_t[j + 1]) if kt_t[j + 1] > t else t_stop
-        if io < n_out:
-            target = min(target, t_out[io])
+        code, target = step_end(fs, ist, ev, knots, j, t_out, t_stop)
+        if code != STEP:
+            return code
+        t = fs[S_T]
         h = target - t
-        if h <= 0.0:
-            return RET_DONE
         seg = segment_at(knots, j, t)
-        if seg.fn0 < FN_CONTACT_MIN_N and seg.fn0 + seg.fn1 * h < FN_CONTACT_MIN_N:
+        if apart(seg, h):
             ended = free_step(cp, weights, fs, ist, g, mode, ev, seg, h)
             fs[S_T] = target
             tstick[:] = target

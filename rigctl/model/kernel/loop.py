@@ -13,23 +13,15 @@ from numba import njit
 from rigctl.model.friction_laws import slip_is_nonlinear
 from rigctl.model.kernel.fast_stick import fast_stick_run
 from rigctl.model.kernel.free_step import free_step
-from rigctl.model.kernel.inputs import interp, segment_at, slope
+from rigctl.model.kernel.inputs import segment_at
 from rigctl.model.kernel.linear_step import linear_step
 from rigctl.model.kernel.nonlinear_slip import nonlinear_slip_step, rk_step_s
-from rigctl.model.kernel.output import write_sample
+from rigctl.model.kernel.walk import STEP, apart, current_knot, step_end, write_due_sample
 from rigctl.model.layout import (
-    FN_CONTACT_MIN_N,
     I_CHATTER,
     I_GSLIP,
-    I_KNOT,
-    I_NEVENT,
-    I_OUT,
-    K_FN,
     K_T,
-    K_XS,
     MAX_STEPS_PER_SAMPLE,
-    RET_DONE,
-    RET_EVENT_TABLE_FULL,
     RET_SLIP_END,
     S_T,
 )
@@ -64,42 +56,25 @@ def advance(
     Re-entrant: all state lives in the arrays, so a caller may stop (RET_SLIP_END,
     RET_EVENT_TABLE_FULL), act, and call again. Returns a RET_* code.
     """
-    n_out = t_out.shape[0]
-    nk = knots.shape[1]
     kt_t = knots[K_T]
     nonlinear = slip_is_nonlinear(cp)
     h_rk = rk_step_s(cp)
     steps = 0
     while True:
-        t = fs[S_T]
-        j = ist[I_KNOT]
-        while j < nk - 2 and kt_t[j + 1] <= t:
-            j += 1
-        ist[I_KNOT] = j
-        io = ist[I_OUT]
-        if io < n_out and t_out[io] <= t:
-            xs = interp(knots, K_XS, j, t)
-            fn = max(interp(knots, K_FN, j, t), 0.0)
-            vs = slope(knots, K_XS, j)
-            write_sample(
-                cp, weights, fs, ist, g, mode, io, xs, vs, fn, out, flags, elem, record_elements
-            )
-            ist[I_OUT] = io + 1
+        j = current_knot(knots, fs, ist)
+        io, _, _ = write_due_sample(cp, weights, fs, ist, g, mode, knots, j, t_out, out, flags,
+                                    elem, record_elements)
+        if io >= 0:
             steps = 0
             continue
-        if t >= t_stop:
-            return RET_DONE
-        if ist[I_NEVENT] >= ev.shape[0] - 1:
-            return RET_EVENT_TABLE_FULL
-        target = min(t_stop, kt_t[j + 1]) if kt_t[j + 1] > t else t_stop
-        if io < n_out:
-            target = min(target, t_out[io])
+        code, target = step_end(fs, ist, ev, knots, j, t_out, t_stop)
+        if code != STEP:
+            return code
+        t = fs[S_T]
         h = target - t
-        if h <= 0.0:
-            return RET_DONE
         seg = segment_at(knots, j, t)
         steps += 1
-        if seg.fn0 < FN_CONTACT_MIN_N and seg.fn0 + seg.fn1 * h < FN_CONTACT_MIN_N:
+        if apart(seg, h):
             ended = free_step(cp, weights, fs, ist, g, mode, ev, seg, h)
             fs[S_T] = target
             if ended and stop_on_slip_end:

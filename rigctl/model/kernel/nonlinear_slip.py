@@ -83,6 +83,35 @@ def stribeck_law(cp: np.ndarray, fn: float, v_abs: float) -> float:
 
 
 @njit(cache=True)
+def kinetic_mu(cp: np.ndarray, fn: float, v_abs: float, th: float, e: float) -> float:
+    """The kinetic coefficient of a global slip: mu_k,base(|V|, theta) + min(e, law(|V|)).
+
+    The Stribeck part is the law's value capped by e, what the sliding elements can carry
+    (:func:`slip_rhs`); it is absent when stribeck is off."""
+    mu = mu_kinetic_base(cp, fn, v_abs, th)
+    if cp[P_VS] > 0.0:
+        mu += min(e, stribeck_law(cp, fn, v_abs))
+    return mu
+
+
+@njit(cache=True)
+def slip_friction(cp: np.ndarray, fn: float, fe: float, v_abs: float, th: float,
+                  e: float) -> tuple[float, float, float]:
+    """(mu, theta', e') in a global slip: the kinetic coefficient (:func:`kinetic_mu`), the aging
+    law d theta/dt = 1 - |V| theta / Dc (1 when rate_state is off, so theta keeps the contact's
+    age) and the elastic loading rate of the Stribeck bound, de/dt = Kt |V| / Fn_eff
+    (:func:`slip_rhs`)."""
+    mu = kinetic_mu(cp, fn, v_abs, th, e)
+    de = 0.0
+    if cp[P_VS] > 0.0:
+        de = element_stiffness(cp, 1, fn, 1) * v_abs / max(fe, FN_CONTACT_MIN_N)
+    dth = 1.0
+    if cp[P_RS_A] != 0.0 or cp[P_RS_B] != 0.0:
+        dth = 1.0 - v_abs * th / cp[P_RS_DC]
+    return mu, dth, de
+
+
+@njit(cache=True)
 def slip_rhs(
     cp: np.ndarray, sign: int, s: SlipState, xs: float, vs: float, fn: float
 ) -> tuple[float, float, float, float]:
@@ -99,17 +128,8 @@ def slip_rhs(
     k0 = cp[P_K0]
     fe = fn + cp[P_KAPPA] * k0 * (xs - x)
     fd = drive_force(cp, xs, vs, x, v)
-    va = abs(v)
-    mu = mu_kinetic_base(cp, fn, va, th)
-    de = 0.0
-    if cp[P_VS] > 0.0:
-        mu += min(e, stribeck_law(cp, fn, va))
+    mu, dth, de = slip_friction(cp, fn, fe, abs(v), th, e)
     acc = (fd - cp[P_CINT] * v - sign * mu * fe) / cp[P_M]
-    if cp[P_VS] > 0.0:
-        de = element_stiffness(cp, 1, fn, 1) * va / max(fe, FN_CONTACT_MIN_N)
-    dth = 1.0
-    if cp[P_RS_A] != 0.0 or cp[P_RS_B] != 0.0:
-        dth = 1.0 - va * th / cp[P_RS_DC]
     dy = 0.0
     if cp[P_TAU_S] > 0.0:
         dy = (fd - y) / cp[P_TAU_S]
@@ -254,7 +274,7 @@ def _aging_step_ok(cp: np.ndarray, s0: SlipState, s1: SlipState, hs: float) -> b
 
 
 @njit(cache=True)
-def _aging_limited_step(cp: np.ndarray, v: float, hs: float) -> float:
+def aging_limited_step(cp: np.ndarray, v: float, hs: float) -> float:
     """hs, shortened so that |v| hs <= AGING_STEP_LIMIT Dc (a NaN v keeps hs)."""
     lim = AGING_STEP_LIMIT * cp[P_RS_DC]
     if abs(v) * hs > lim:
@@ -293,11 +313,11 @@ def nonlinear_slip_step(
     while tloc < h:
         hs = min(h_rk, h - tloc)
         if aging:
-            hs = _aging_limited_step(cp, s.v, hs)
+            hs = aging_limited_step(cp, s.v, hs)
         sn = rk4(cp, sign, s, seg, tloc, hs)
         while aging and not _aging_step_ok(cp, s, sn, hs):
             # the slip sped up within the step (or the step blew up): redo it shorter
-            hs = _aging_limited_step(cp, abs(sn.v), 0.5 * hs)
+            hs = aging_limited_step(cp, abs(sn.v), 0.5 * hs)
             sn = rk4(cp, sign, s, seg, tloc, hs)
         if sign * sn.v <= 0.0 and tloc + hs > 0.0:
             # locate V = 0 on the cubic Hermite interpolant of V over the step, then redo the step

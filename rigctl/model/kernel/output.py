@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rigctl.model.friction_laws import mu_kinetic_base, mu_static
+from rigctl.model.friction_laws import mu_static
 from rigctl.model.kernel.forces import drive_force
-from rigctl.model.kernel.nonlinear_slip import stribeck_law
+from rigctl.model.kernel.nonlinear_slip import kinetic_mu
 from rigctl.model.layout import (
     F_SLIP,
     F_STAGE,
@@ -24,7 +24,6 @@ from rigctl.model.layout import (
     P_K0,
     P_KAPPA,
     P_TAU_S,
-    P_VS,
     S_K_USED,
     S_STRIB,
     S_THETA,
@@ -63,10 +62,7 @@ def write_sample(
     stage = ist[I_STAGE]
     n = g.shape[0]
     if ist[I_GSLIP] == 1:
-        mu = mu_kinetic_base(cp, fn, abs(v), fs[S_THETA])
-        if cp[P_VS] > 0.0:
-            mu += min(fs[S_STRIB], stribeck_law(cp, fn, abs(v)))
-        fi = ist[I_SIGN] * mu * fe
+        fi = ist[I_SIGN] * kinetic_mu(cp, fn, abs(v), fs[S_THETA], fs[S_STRIB]) * fe
     else:
         k = fs[S_K_USED]
         pw = weights[stage]
