@@ -23,7 +23,7 @@ from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError
 from rigctl.model.result import SimResult, SlipEvent
 from rigctl.model.spec import CoreSetup, ModelSpec
-from rigctl.model.terms import PluginTermError
+from rigctl.model.terms import PluginTermError, first_class_functions
 
 STATED_RIG_PARAMS = ("m_kg", "c0_N_s_per_m")
 """Parameters a simulated run states in its metadata (:func:`stated_rig_parameters`): a rig
@@ -153,11 +153,12 @@ class _Integration:
         """The general path (plug-in terms); a term that raises or is not finite ends the run
         with one :class:`PluginTermError` naming the plug-in and the state."""
         try:
-            code = int(advance_terms(
-                self.cp, self.setup.weights, self.terms, self.fs, self.ist, self.g, self.mode,
-                self.tstick, self.z, knots, t_out, out.table, out.flags, out.elements, self.ev,
-                t_stop, stop_on_slip_end, record_elements,
-            ))
+            with first_class_functions():  # numba's experimental-feature warning, safe here
+                code = int(advance_terms(
+                    self.cp, self.setup.weights, self.terms, self.fs, self.ist, self.g, self.mode,
+                    self.tstick, self.z, knots, t_out, out.table, out.flags, out.elements,
+                    self.ev, t_stop, stop_on_slip_end, record_elements,
+                ))
             if code != layout.RET_TERM_ERROR:
                 return code
             why = "made the state non-finite"

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,9 +28,6 @@ from numba.core.errors import NumbaExperimentalFeatureWarning
 from rigctl.errors import SimulationError
 from rigctl.model.effects.base import Effect
 
-# first-class functions are an experimental numba feature; their use here is tested
-warnings.filterwarnings("ignore", category=NumbaExperimentalFeatureWarning)
-
 _ARR = types.float64[:]
 _F = types.float64
 FRICTION_SIG = _F(_ARR, _F, _F, _F, _F, _F, _F, _ARR)
@@ -39,6 +37,25 @@ FORCE_SIG = _F(_ARR, _F, _F, _F, _F, _ARR)
 RATE_SIG = types.void(_ARR, _F, _F, _F, _F, _ARR, _ARR)
 """f(p, x_m, v_m_s, t_s, fn_N, z, dz_dt) writes dz/dt"""
 KINDS: dict[str, Any] = {"friction": FRICTION_SIG, "force": FORCE_SIG, "rate": RATE_SIG}
+
+
+@contextmanager
+def first_class_functions() -> Iterator[None]:
+    """Silence numba's "First-class function type feature is experimental" while the general
+    path's kernel is typed, compiled or called with the terms' tuple of functions.
+
+    numba warns (NumbaExperimentalFeatureWarning) whenever it types a first-class function
+    argument, i.e. on every call of :func:`rigctl.model.kernel.general.advance_terms`, not only
+    when compiling. It is safe to ignore here: the kernel uses the feature only to call functions
+    compiled to the fixed signatures above, and what it computes with them is tested
+    (tests/model/test_plugin_terms.py: results against the library's built-in laws, errors,
+    determinism, the on-disk cache). Only this warning, only this message, only inside the block:
+    any other warning still shows. (``warnings.catch_warnings`` swaps the process's filter list,
+    so a filter another thread adds while a block runs is lost when the block ends.)"""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r".*First-class function type feature is "
+                                r"experimental", category=NumbaExperimentalFeatureWarning)
+        yield
 
 
 class PluginTermError(SimulationError):

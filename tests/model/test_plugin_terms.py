@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -207,6 +208,23 @@ def test_slip_context_gives_positions_peak_velocity_and_the_stick_time_before():
         assert ev.slip_m / (ev.t_end_s - ev.t_start_s) < ctx.peak_velocity_m_s < 1.0
         prev_end = ev.t_end_s
     assert seen[-1].x_start_m == pytest.approx(_x_at(res, res.events[-1].t_start_s), abs=5e-7)
+
+
+def test_numbas_experimental_feature_warning_is_silenced_only_around_the_general_path():
+    """A run with a term shows no NumbaExperimentalFeatureWarning (numba gives one each time it
+    types the terms' functions), and importing rigctl installs no process-wide filter for it."""
+    from numba.core.errors import NumbaExperimentalFeatureWarning
+
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        _run([ZeroForce], Drive.constant(300.0, 3e-4, 0.05))
+    assert not [w for w in seen if issubclass(w.category, NumbaExperimentalFeatureWarning)]
+    assert not [f for f in warnings.filters
+                if f[0] == "ignore" and isinstance(f[2], type)
+                and issubclass(f[2], NumbaExperimentalFeatureWarning)]
+    with pytest.warns(NumbaExperimentalFeatureWarning):  # elsewhere it still shows
+        warnings.warn("First-class function type feature is experimental",
+                      NumbaExperimentalFeatureWarning, stacklevel=1)
 
 
 def test_the_worked_example_makes_peaks_follow_the_track():
