@@ -59,8 +59,16 @@ from rigctl.records.signals import (
 
 COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
-    "dft_dt_N_per_s",
+    "dft_dt_N_per_s", "x_drive_m",
 )
+"""Per slip, what it may depend on. ``x_drive_m`` is the drive's position at the drop less its
+position at the run's start: where the slider stands along the track, to within the spring's
+stretch. The slider keeps up with the drive on average (over a cycle it advances what the drive
+advanced), so the drive's position is its position along the track up to Ft / k, which changes
+from slip to slip by one drop's worth; ``cum_slip_m`` (the sum of the global slips' jumps of delta)
+misses what the slider advances between them (elements slipping alone, creep), on the paper's model
+up to two thirds of each cycle's advance. A lead screw's pitch or a motor's cogging is periodic in
+the drive's position itself."""
 INIT_BANDS: tuple[tuple[float, float], ...] = ((0.1, 0.3), (0.3, 0.5), (0.5, 0.7), (0.7, 0.9))
 @dataclass(frozen=True)
 class ReadSettings:
@@ -186,6 +194,7 @@ def extract_events(
         cov["v_drive_m_per_s"] = np.abs(drive.velocity_at(t_drop))
         slips_m = np.nan_to_num(feats["slip_m"], nan=0.0)
         cov["cum_slip_m"] = np.concatenate([[0.0], np.cumsum(slips_m)[:-1]])
+        cov["x_drive_m"] = drive.x_at(t_drop) - float(drive.x_stage_m[0])
         finite = np.isfinite(feats["lag_m"])
         if finite.any():
             feats["lag_m"] = feats["lag_m"] - float(np.median(feats["lag_m"][finite]))

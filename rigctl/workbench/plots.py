@@ -170,7 +170,7 @@ def residual_heatmap(rmap: ResidualMap, path: Path) -> Path:
     return path
 
 
-_AXIS_SCALE: dict[str, tuple[float, str]] = {"cum_slip_m": (1e6, "um"), "t_s": (1.0, "s")}
+_AXIS_SCALE: dict[str, tuple[float, str]] = {"x_drive_m": (1e6, "um"), "t_s": (1.0, "s")}
 """Each pattern covariate's axis: factor from SI and unit."""
 _RESIDUAL_SCALE: dict[str, tuple[float, str]] = {"m": (1e6, "um"), "s": (1e3, "ms")}
 """A residual in metres or seconds is drawn in um or ms (ratio features in %, the rest in SI)."""
@@ -190,8 +190,8 @@ def periodic_patterns(patterns: Sequence[Pattern], path: Path, max_panels: int =
             ax.plot(run.x * xs, run.y * ys, ".", color=colour, ms=4, alpha=0.7)
             grid = np.linspace(float(run.x.min()), float(run.x.max()), 400)
             ax.plot(grid * xs, sinusoid(p.fit, run, grid) * ys, "-", color=colour, lw=1.2)
-        where = "track position in the run (cumulative slip)" if p.covariate == "cum_slip_m" \
-            else COVARIATE_NAMES[p.covariate]
+        where = "track position in the run (drive position at the slip)" \
+            if p.covariate == "x_drive_m" else COVARIATE_NAMES[p.covariate]
         ax.set_xlabel(f"{where} [{x_unit}]")
         ax.set_ylabel(f"residual, less each run's line [{y_unit}]", fontsize=8)
         ax.axhline(0.0, color="#bbbbbb", lw=0.8)

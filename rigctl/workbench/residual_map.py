@@ -53,18 +53,19 @@ COVARIATE_NAMES: dict[str, str] = {
     "cum_slip_m": "cumulative slip",
     "ft_N": "Ft",
     "dft_dt_N_per_s": "dFt/dt",
+    "x_drive_m": "position along the track",
 }
 HIGH_END: dict[str, str] = {
     "t_s": "late in the run", "cycle": "in later cycles", "fn_N": "at high Fn",
     "v_drive_m_per_s": "at high drive velocity", "hold_s": "after long holds",
     "stick_time_s": "after long sticks", "cum_slip_m": "after much slip", "ft_N": "at high Ft",
-    "dft_dt_N_per_s": "at fast loading",
+    "dft_dt_N_per_s": "at fast loading", "x_drive_m": "further along the track",
 }
 LOW_END: dict[str, str] = {
     "t_s": "early in the run", "cycle": "in the first cycles", "fn_N": "at low Fn",
     "v_drive_m_per_s": "at low drive velocity", "hold_s": "after short holds",
     "stick_time_s": "after short sticks", "cum_slip_m": "before much slip", "ft_N": "at low Ft",
-    "dft_dt_N_per_s": "at slow loading",
+    "dft_dt_N_per_s": "at slow loading", "x_drive_m": "near the track's start",
 }
 
 TREND_T_MIN = 3.0  # t statistic a residual trend needs to be reported (about p < 0.003)
@@ -84,9 +85,10 @@ class Trend:
     """dz / dg"""
 
 
-PATTERN_COVARIATES: dict[str, str] = {"cum_slip_m": "of track", "t_s": ""}
+PATTERN_COVARIATES: dict[str, str] = {"x_drive_m": "of track", "t_s": ""}
 """Covariates searched for a period, with the words after its period: the slider's position along
-the track (its cumulative slip in the run: where it stands when the slip starts) and time."""
+the track (the drive's position at the slip, :data:`rigctl.records.features.COVARIATES`) and
+time."""
 FAP_LEVEL = 0.01
 """False-alarm probability of a reported pattern or correlation over all the tests of one map
 (Bonferroni: each test's own at FAP_LEVEL / number of tests), so that a model within the scatter

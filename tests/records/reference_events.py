@@ -341,6 +341,7 @@ def extract_events(
         cov["v_drive_m_per_s"] = np.abs(drive.velocity_at(t_drop))
         slips_m = np.nan_to_num(feats["slip_m"], nan=0.0)
         cov["cum_slip_m"] = np.concatenate([[0.0], np.cumsum(slips_m)[:-1]])
+        cov["x_drive_m"] = drive.x_at(t_drop) - float(drive.x_stage_m[0])
         finite = np.isfinite(feats["lag_m"])
         if finite.any():
             feats["lag_m"] = feats["lag_m"] - float(np.median(feats["lag_m"][finite]))

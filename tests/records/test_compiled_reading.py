@@ -65,6 +65,7 @@ def _same_table(new: EventTable, old: EventTable, t: np.ndarray, ft: np.ndarray,
     scale = {"peak_N": f_scale, "trough_N": f_scale, "drop_N": f_scale, "ft_N": f_scale,
              "fn_swing_N": float(np.max(np.abs(fn))), "fn_N": float(np.max(np.abs(fn))),
              "slip_m": d_scale, "lag_m": d_scale, "cum_slip_m": d_scale,
+             "x_drive_m": d_scale,
              "drop_delay_s": span_t, "t_s": span_t, "hold_s": span_t, "stick_time_s": span_t,
              "stick_s": span_t}
     _close(new.t_drop_s, old.t_drop_s, span_t, f"{tag} t_drop")

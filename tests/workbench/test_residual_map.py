@@ -18,7 +18,7 @@ def _case(peak_residual, hold_s, extra_cov=None):
     feats = {name: np.ones(n) for name in EVENT_FEATURES}
     cov = {name: rng.uniform(1, 2, n) for name in COVARIATES}
     cov["hold_s"] = np.asarray(hold_s, float)
-    cov["stick_time_s"] = 3.0 + np.asarray(hold_s, float)
+    cov["stick_time_s"] = 30.0 + np.asarray(hold_s, float)  # a 30 s loading ramp plus the hold
     cov["t_s"] = np.arange(n, dtype=np.float64) * 4.0 + 2.0
     if extra_cov:
         cov.update(extra_cov)
