@@ -50,6 +50,7 @@ def _writer(path: Path, camera: bool) -> RunWriter:
                      CameraLayout(480, 640) if camera else None)
 
 
+@pytest.mark.slow
 def test_records_every_sample_frames_and_markers_in_order(rig, tmp_path):
     path = tmp_path / "run.h5"
     acq = Acquisition(rig.devices, _writer(path, camera=True))

@@ -15,6 +15,7 @@ from rigctl.io.csv_format import write_csv
 from tests.analysis.sim import one_pass
 
 
+@pytest.mark.slow
 def test_one_run_report_and_json(tmp_path, capsys):
     res, run = one_pass()
     csv = tmp_path / "run.csv"
@@ -34,6 +35,7 @@ def test_one_run_report_and_json(tmp_path, capsys):
     assert "mu_s,max" in html and "<script" not in html
 
 
+@pytest.mark.slow
 def test_default_out_folder_next_to_the_run(tmp_path, capsys):
     _, run = one_pass()
     csv = tmp_path / "r1.csv"

@@ -123,6 +123,7 @@ def test_the_report_has_the_contact_section(sim_file: Path, tmp_path: Path) -> N
     assert rows[0].startswith("t_s,isum,ic,fn_N,ft_N,P1") and len(rows) == doc["frames"] + 1
 
 
+@pytest.mark.slow
 def test_a_run_without_frames_says_the_section_is_absent_and_why(tmp_path: Path) -> None:
     _, run = one_pass(duration_s=20.0)
     path = write_measured_run(tmp_path / "nocam.h5", run)

@@ -322,6 +322,7 @@ def test_no_worker_remains_after_diagnose_finishes(launch):
     assert _survivors(seen) == []
 
 
+@pytest.mark.slow
 def test_no_worker_remains_after_candidates_are_stopped_at_the_time_limit(launch, tmp_path):
     """Both candidates hold until the 1 s limit stops them; the command finishes with its verdict
     and leaves no worker."""
@@ -334,6 +335,7 @@ def test_no_worker_remains_after_candidates_are_stopped_at_the_time_limit(launch
     assert _survivors(seen) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_an_interrupted_diagnose_leaves_no_worker_and_says_so_in_one_line(launch, tmp_path, sig):
     cmd = launch(HELD_CANDIDATES)

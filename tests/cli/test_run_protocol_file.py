@@ -65,6 +65,7 @@ def test_a_file_protocol_runs_on_the_simulated_rig_and_is_recorded(tmp_path):
     (lambda d: _file(d, "x = 1\n"), "defines no Protocol"),
     (lambda d: _file(d, "x = 1\ndef f(:\n"), "bad.py, line 2: syntax error"),
 ])
+@pytest.mark.slow
 def test_an_unusable_protocol_file_is_one_line_and_exit_2(tmp_path, make, message):
     r = rigctl("run", str(make(tmp_path)), "--dry-run")
     assert r.returncode == 2

@@ -130,6 +130,7 @@ def _signalled_mid_run(tmp_path, signum: int) -> tuple[subprocess.Popen[str], st
     signal.SIGHUP, signal.SIGQUIT,
     pytest.param(signal.SIGTERM, marks=pytest.mark.slow),  # as SIGHUP; SIGINT: test_run_cli.py
 ])
+@pytest.mark.slow
 def test_a_signal_mid_run_releases_the_load_and_closes_the_file_aborted(tmp_path, signum):
     proc, stderr, out = _signalled_mid_run(tmp_path, signum)
     assert proc.returncode == 128 + signum, stderr

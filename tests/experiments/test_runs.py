@@ -58,6 +58,7 @@ def status_of(path: Path) -> tuple[str, str, list[str]]:
                 [n.decode() for n in f["entry/events/name"][:]])
 
 
+@pytest.mark.slow
 def test_tlre_records_the_initial_stage_and_returns(rig, tmp_path):
     out = tmp_path / "tlre.h5"
     x0 = rig.devices.tangential_stage.position_m()
@@ -80,6 +81,7 @@ def test_tlre_records_the_initial_stage_and_returns(rig, tmp_path):
     assert outcome.stats is not None and outcome.stats.daq_dropped == 0
 
 
+@pytest.mark.slow
 def test_the_record_reaches_the_end_of_the_protocol_when_the_reader_lags(rig, tmp_path):
     """The DAQ reader falls behind during the last step (a loaded machine; here each block is
     handed over 50 ms after it was read), so the paced rig runs up to the pacer's lag ahead of the
@@ -220,6 +222,7 @@ def test_a_stage_that_stops_answering_fails_the_run_and_the_load_is_released(rig
     assert np.isfinite(run.x_stage_m[0])
 
 
+@pytest.mark.slow
 def test_a_release_that_does_not_happen_is_reported_from_the_measured_force(rig, tmp_path):
     """The normal stage acknowledges the retraction but does not move (a jammed or disabled motor):
     the safe state is judged on the measured Fn, so the run says the load is still on."""

@@ -65,6 +65,7 @@ def test_a_protocol_that_never_releases_the_load_ends_released_and_recorded(rig,
     assert d["fn_N"].max() > 290.0 and abs(float(d["fn_N"][-20:].mean())) < 1.0
 
 
+@pytest.mark.slow
 def test_a_protocol_that_releases_the_load_is_not_moved_again(rig, tmp_path):
     out = tmp_path / "released.h5"
     outcome = _run(rig, {"release": "1"}, out)

@@ -57,6 +57,7 @@ def test_a_jog_too_fast_is_refused_naming_the_speed_limit(window, rig):
     assert "refused" in window.devices.jog_label.text() and "velocity" in window.devices.jog_label.text()
 
 
+@pytest.mark.slow
 def test_a_jog_within_the_limits_moves_the_stage(qtbot, window, rig):
     stage = rig.devices.tangential_stage
     x0 = stage.position_m()
@@ -69,6 +70,7 @@ def test_a_jog_within_the_limits_moves_the_stage(qtbot, window, rig):
                     timeout=TIMEOUT_MS)
 
 
+@pytest.mark.slow
 def test_after_an_estop_jogs_are_refused_until_reset(qtbot, window, rig):
     window.emergency_stop()
     qtbot.waitUntil(lambda: "E-STOP ACTIVE" in window.devices.estop_label.text(), timeout=TIMEOUT_MS)
@@ -84,6 +86,7 @@ def test_after_an_estop_jogs_are_refused_until_reset(qtbot, window, rig):
     assert "moving" in window.devices.jog_label.text(), window.devices.jog_label.text()
 
 
+@pytest.mark.slow
 def test_readings_during_a_run_come_from_the_live_data(window, monkeypatch):
     """With the rig held by the window (no run service), the readings line shows the latest Ft, Fn
     and delta of the live data while a run is going, and nothing between runs."""

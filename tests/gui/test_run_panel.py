@@ -63,6 +63,7 @@ def test_dry_run_refuses_a_force_over_the_limit_and_moves_nothing(qtbot, panels,
     assert panel.samples_received == 0
 
 
+@pytest.mark.slow
 def test_a_short_tlre_runs_to_completion_from_start(qtbot, panels, tmp_path):
     panel = make_panel(qtbot, speed="max")
     panels.append(panel)
@@ -85,6 +86,7 @@ def test_a_short_tlre_runs_to_completion_from_start(qtbot, panels, tmp_path):
         assert f["entry/status"][()].decode() == "completed"
 
 
+@pytest.mark.slow
 def test_abort_during_a_run_releases_the_normal_load(qtbot, panels, rig, tmp_path):
     panel = make_panel(qtbot, rig=rig)
     panels.append(panel)
@@ -107,6 +109,7 @@ def test_abort_during_a_run_releases_the_normal_load(qtbot, panels, rig, tmp_pat
     assert rig.sim.rig.state.fn_N == pytest.approx(0.0, abs=0.05)  # normal load released
 
 
+@pytest.mark.slow
 def test_closing_during_a_run_asks_then_aborts_to_a_safe_state(qtbot, panels, rig, tmp_path,
                                                                  monkeypatch):
     panel = make_panel(qtbot, rig=rig)

@@ -39,6 +39,7 @@ def panel(qtbot):
     p.shutdown()
 
 
+@pytest.mark.slow
 def test_a_finished_run_shows_its_whole_record_events_status_and_parameters(panel, qtbot,
                                                                          finished_run):
     messages: list[str] = []
@@ -99,6 +100,7 @@ def test_a_run_being_recorded_is_followed_as_it_grows(panel, qtbot, tmp_path):
     assert "completed" in panel.status_label.text()
 
 
+@pytest.mark.slow
 def test_export_writes_the_runs_samples_refuses_to_overwrite_and_the_csv_opens(panel, qtbot, finished_run,
                                                                tmp_path):
     assert panel.open(finished_run)

@@ -55,6 +55,7 @@ def test_csv_campaign_reads_exactly_like_the_runs_in_memory(tmp_path):
     assert "force sweep" in protocols_present(from_csv)
 
 
+@pytest.mark.slow
 def test_hdf5_run_files_read_exactly_like_the_csv_exchange_files(tmp_path):
     from rigctl.storage.convert import write_measured_run
 

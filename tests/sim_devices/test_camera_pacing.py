@@ -67,6 +67,7 @@ def test_frames_carry_their_time_on_the_daq_clock_while_the_daq_streams() -> Non
     daq.close()
 
 
+@pytest.mark.slow
 def test_a_rig_slower_than_the_host_clock_does_not_time_the_camera_out() -> None:
     rig = VirtualRig()
     cam = SimCamera(rig, frame_rate_hz=10.0)

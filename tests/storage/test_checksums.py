@@ -34,6 +34,7 @@ def test_every_growing_dataset_has_a_checksum(run_file: Path) -> None:
             assert daq[name].fletcher32, name
 
 
+@pytest.mark.slow
 def test_a_flipped_byte_is_reported_with_its_dataset_and_samples(run_file: Path,
                                                                 tmp_path: Path) -> None:
     with h5py.File(run_file) as f:

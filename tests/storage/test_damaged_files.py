@@ -259,6 +259,7 @@ def _with_damage(data: bytes, begin: int, damage: tuple[tuple[str, float], int, 
     return _flipped(data, at, width)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(damage=DAMAGE)
@@ -325,6 +326,7 @@ def test_many_damaged_bytes_get_an_answer(small_run, tmp_path: Path, reader: Rea
     event(f"{damage[0][0]}: {_answered(reader, bad).split()[0]}")
 
 
+@pytest.mark.slow
 def test_the_command_line_answers_in_one_line(small_run, tmp_path: Path) -> None:
     path, _ = small_run
     data = path.read_bytes()

@@ -53,6 +53,7 @@ def _record(path: Path, frames: np.ndarray, duration_s: float,
     return daq, cam
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("compression", ["gzip", "lzf"])
 def test_the_size_estimate_is_within_1_5x_of_a_recorded_run(
         tmp_path: Path, compression: FrameCompression) -> None:

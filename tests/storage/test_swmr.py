@@ -84,6 +84,7 @@ def test_a_second_process_reads_while_the_writer_appends(tmp_path: Path, start_w
     assert final == 1536
 
 
+@pytest.mark.slow
 def test_a_killed_writer_leaves_a_readable_file_missing_under_half_a_second(
     tmp_path: Path, start_writer
 ) -> None:

@@ -41,6 +41,7 @@ def test_compare_json_gives_the_error_per_feature_and_parameters(campaign, capsy
                for t in out["residual_trends"])
 
 
+@pytest.mark.slow
 def test_compare_with_the_missing_effect_added_has_a_smaller_error(campaign, capsys):
     main(["model", "compare", str(campaign), "--json"])
     without = json.loads(capsys.readouterr().out)["error"]
@@ -106,6 +107,7 @@ def test_unknown_effect_and_missing_path_are_usage_errors(campaign, tmp_path, ca
     assert "nowhere" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_compare_fits_its_starts_with_the_workers_asked(campaign, monkeypatch, capsys):
     """`--workers N` reaches the base fit (its two starts on another rig's data go to N worker
     processes, tests/workbench/test_parallel_starts.py); the default is the CPUs; 0 is refused."""

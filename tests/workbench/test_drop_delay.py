@@ -29,6 +29,7 @@ def _read(params: dict[str, float], sensor_tau_s: float = 0.0, **campaign):
     return feats["drop_delay_s"], feats["step_frac"]
 
 
+@pytest.mark.slow
 def test_a_slow_force_sensor_shows_as_a_delay_a_heavy_slider_does_not():
     delay0, sharp0 = _read({})
     delay_s, sharp_s = _read({}, sensor_tau_s=TAU_S)

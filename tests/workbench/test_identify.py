@@ -20,6 +20,7 @@ def tlre():
     return prepare_dataset(simulate_campaign(build_model("paper", params=TRUTH), "tlre", seed=11))
 
 
+@pytest.mark.slow
 def test_base_parameters_are_recovered_from_a_noisy_run(tlre):
     res = identify_model(tlre, ModelChoice("paper"))
     for name in ("mu_s", "mu_k", "kts_N_per_m", "k0_N_per_m", "mu_smax"):

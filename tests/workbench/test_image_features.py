@@ -156,6 +156,7 @@ def test_a_run_without_frames_compares_as_before(with_images: Comparison, rig_ru
     assert float(ev_img.score.vector @ ev_img.score.vector) == pytest.approx(n1 * ev_img.score.error**2)
 
 
+@pytest.mark.slow
 def test_a_model_without_the_stress_evolution_is_told_by_the_images(folder: Path) -> None:
     path = _run_file(folder, 0.9, ())
     classic = compare([_measured(path)], ModelChoice("classic"), identify=False)

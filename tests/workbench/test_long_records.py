@@ -25,6 +25,7 @@ def test_a_short_record_is_compared_whole() -> None:
     assert window_long_runs([run]) == [run]
 
 
+@pytest.mark.slow
 def test_a_long_record_is_cut_into_windows_spread_over_it(long_run) -> None:  # type: ignore[no-untyped-def]
     windows = window_long_runs([long_run], max_slips=480, n_windows=8)
     assert len(windows) == 8

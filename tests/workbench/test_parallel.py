@@ -360,6 +360,7 @@ def test_workers_ignore_sigint_and_the_parent_kills_them_on_keyboard_interrupt()
     assert left == []
 
 
+@pytest.mark.slow
 def test_no_task_is_stopped_before_it_ran_as_long_as_the_slowest_finished(held_tasks):
     """A task whose expected cost is tiny (a cheap probe) is not stopped before it has run as long
     as a finished task took: per unit of cost it may be far slower than the others, but it is no

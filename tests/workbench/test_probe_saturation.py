@@ -78,6 +78,7 @@ def test_saturation_is_found_in_a_bare_record(runs):
     assert over.mean() == pytest.approx(np.mean(clipped.t_s >= t_over), abs=0.02)
 
 
+@pytest.mark.slow
 def test_compare_excludes_the_saturated_delta_and_recovers_kts_and_mu_k(runs):
     _raw, clipped, t_over = runs
     cmp = compare([clipped], ModelChoice("paper"))

@@ -46,6 +46,7 @@ def test_spring_slider_drive_stiffness_is_found_near_the_stated_spring(ens_compa
     assert abs(k0 / STATED_SPRING_N_PER_M - 1.0) < 0.30, k0
 
 
+@pytest.mark.slow
 def test_spring_slider_fit_improves_on_the_preset_by_far(ens_comparison) -> None:  # type: ignore[no-untyped-def]
     preset_error = evaluate(ens_comparison.dataset, PAPER).score.error
     assert ens_comparison.fit.error < 0.6 * preset_error, (ens_comparison.fit.error, preset_error)

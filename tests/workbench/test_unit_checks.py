@@ -73,6 +73,7 @@ def test_a_long_loaded_rest_before_a_short_slide_is_not_a_unit_mistake(good_run)
     assert any("ft_N" in n for n in _unit_notes(kn))
 
 
+@pytest.mark.slow
 def test_the_report_lists_the_notes_on_the_data(good_run, tmp_path):
     """The HTML report carries what the command line prints about the data (here the unit to
     check), not only the fit."""
