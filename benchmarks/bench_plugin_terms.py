@@ -8,6 +8,11 @@ The same drag -c V (c = 30 N s/m) on the paper model, 3 s at 1e-4 m/s and 300 N 
 * ``built_in_exact``: the library's ``interface_damping`` on the exact path (no plug-in term).
 
 Target (issue 37): plugin / built_in_general >= 0.5 in speed. CPU seconds, medians of repeats.
+
+``--library`` adds what moving a library effect onto the term API would cost today: ``rate_state``
+and ``presliding`` on their own paths (exact stick, RK4 only in ``rate_state``'s slips) against the
+general path (forced there as above), on a slide-hold-slide of the workbench's kind (2e-5 m/s,
+holds of 1 and 3 s, 300 N).
 """
 
 from __future__ import annotations
@@ -87,9 +92,24 @@ def measure(duration_s: float = 3.0, repeats: int = 3) -> dict[str, float]:
     return out
 
 
+def measure_library_moves(repeats: int = 2) -> dict[str, float]:
+    """CPU seconds of two library effects on their own path and on the general path."""
+    drive = Drive.segments(300.0, [(5.0, 2e-5), (1.0, 0.0), (5.0, 2e-5), (3.0, 0.0), (5.0, 2e-5)])
+    out: dict[str, float] = {}
+    for name in ("rate_state", "presliding"):
+        own = _cpu_s(Simulator(build_model("paper", effects=[name])), drive, repeats)
+        general = _cpu_s(Simulator(build_model("paper", effects=[name, NoForce])), drive, repeats)
+        out[f"{name}_own_path_cpu_s"] = own
+        out[f"{name}_general_path_cpu_s"] = general
+        out[f"{name}_general_slower_by"] = general / own
+    return out
+
+
 def main() -> int:
     quick = "--quick" in sys.argv
     res = measure(1.0 if quick else 3.0, 2 if quick else 5)
+    if "--library" in sys.argv:
+        res.update(measure_library_moves())
     if "--json" in sys.argv:
         print(json.dumps(res, indent=2))
     else:
