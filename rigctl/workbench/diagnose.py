@@ -205,9 +205,9 @@ def better_model(dataset: Dataset, model: FitResult, fits: dict[str, FitResult])
     Gauss-Newton steps of the model's own parameters from there (:mod:`rigctl.workbench.fitting`),
     so it may find a better point for them than the model's own fit reached. If the candidate's
     fitted values *without* the candidate beat the model by MIN_ERROR_REDUCTION or more, the
-    candidate's gain was the model's unfinished fit, not the effect (on a held-out rig all three
-    leading candidates reached the same error, 73 -> 8.7, with nothing of their own switched on):
-    the model is refitted from the best such point and the round must be run again."""
+    candidate's gain was the model's unfinished fit, not the effect (the gain of a term must not be
+    credited with what any fit of the model itself could reach): the model is refitted from the best
+    such point and the round must be run again (history: docs/decisions.md)."""
     fns = fn_range(dataset)
     best: tuple[float, str] | None = None
     for name, res in fits.items():
@@ -244,8 +244,8 @@ def cost_order(
     costs). A candidate that cannot be simulated at its starting values (not physically valid on
     the model, or refused) is given the largest time measured: its fit starts elsewhere and may be
     as slow as any, and the time limit of :func:`rigctl.workbench.parallel.run_tasks` scales with
-    the cost (timed at ~0 s it had the 20 s floor, and a held-out candidate fit was stopped there
-    while the others took up to 60 s). Each probe has the slip budget of its own length
+    the cost (timed at ~0 s it would get only the limit's floor, however long its fit needs). Each
+    probe has the slip budget of its own length
     (:func:`~rigctl.workbench.evaluate.slip_budget`), so a chattering candidate stops early."""
     run = dataset.runs[0]
     # the probe's own length sets its slip budget (evaluate.slip_budget), not the whole run's
@@ -513,10 +513,10 @@ def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
 def _best_known(diag: Diagnosis, rest: FitResult) -> FitResult:
     """``rest``, or the model of an earlier round with the same effects where that scores better.
 
-    Both are fits of the same model to the same data; the refit without an effect starts from the
-    final model's values and can end worse than the rounds did (held-out seed 5 case 7: the model
-    with `presliding` alone scored 2.19 in its round, refitted from the final model without
-    `rate_state` 2.99, and `rate_state`, removed, left the worse one as the final model)."""
+    Both are fits of the same model to the same data, so the lower error is the better estimate of
+    that model: the refit without an effect is a short local fit from the final model's values and
+    can end worse than the rounds' own fits did, and an effect must not be judged against a model
+    fitted worse than it already was (history: docs/decisions.md)."""
     effects = sorted(rest.choice.effects)
     known = [r.model for r in diag.rounds
              if sorted(r.model.choice.effects) == effects and not r.model.misses_most_slips
