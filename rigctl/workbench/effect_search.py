@@ -2,11 +2,11 @@
 
 A candidate or pair fit scans an effect's parameters once, at the start, from the model it is added
 to (:mod:`rigctl.workbench.fitting`); the local fit then moves them only as far as its valley goes.
-Two effects fitted together can end in a valley that no local step leaves. On held-out seed 4 case
-11 (load-dependent friction and a Stribeck law hidden) the pair's fit ended at 6.61 with the
-Stribeck velocity at 1.33 m/s and fitted on only to 6.51. Set at the 6.61 end to the generating
-2.98 m/s, the model first scores 18.7, worse, and the refit of the whole model from there ends at
-0.956 (the generating model scores 0.784): the valleys are separated by a ridge in v_s.
+Two effects fitted together can end in a valley that no local step leaves: where the valleys of an
+effect parameter are separated by a ridge (the model scores worse between them until the rest of
+the model is refitted), a local fit from one side never crosses it, and moving the parameter alone
+to the other side looks worse. Only a refit of the whole model from a point across the ridge shows
+the other valley (the case that showed it: docs/decisions.md).
 
 :func:`refit_over_effects` therefore refits each model's free parameters (the local fit of
 :func:`~rigctl.workbench.mass_search.refit_task`) from :data:`EFFECT_SEARCH_FACTORS` times each of
@@ -28,8 +28,10 @@ from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.parallel import run_tasks
 
 EFFECT_SEARCH_FACTORS: tuple[float, ...] = (0.3, 3.0)
-"""Multiples of an effect parameter's fitted value each refit starts from (half a decade either
-side: the scan of the candidate fit already tried 0.1 to 3 times the typical value once)."""
+"""Multiples of an effect parameter's fitted value each refit starts from: one step of the candidate
+scan's half-decade grid (:data:`~rigctl.workbench.fitting.SCAN_FACTORS`) either side, now about the
+fitted value instead of the typical one - the nearest points that lie in another valley if the
+fit's valley is narrower than the grid's spacing, two refits per parameter."""
 
 
 def effect_points(dataset: Dataset, result: FitResult,

@@ -2,15 +2,16 @@
 
 N, the number of Jenkins elements the contact is cut into (paper Sec. 5.1), is an integer no
 least-squares step moves, and another rig's data do not state it. The paper model alone hardly
-tells N apart: on held-out seed 4 case 7 (generated with N = 39) the base fit scores 40.5, 40.4
-and 40.8 at N = 10, 20 and 40. An effect that spreads the thresholds over the elements
-(``presliding``: :meth:`rigctl.model.effects.base.Effect.element_threshold_factors`) makes the
-stick ramp round off in N steps, and there N matters: ``presliding`` alone scores 4.98 at N = 10
-and 3.48 at N = 20, with ``contact_degradation`` as well 3.83 and 1.39. So once such an effect is
-in the model, the model is refitted at each count of :data:`ELEMENT_COUNTS`, then at the counts
-next to the best of them (:func:`refine_counts`), and the best kept.
-The refits are independent and run in parallel like the candidate fits
-(:mod:`rigctl.workbench.parallel`: the same workers, time limit and Dask scheduler).
+tells N apart: in its stable stage all elements reach their threshold together (uniform P,
+docs/model.md), so N shows only in the steps of the initial stage. An effect that spreads the
+thresholds over the elements (``presliding``:
+:meth:`rigctl.model.effects.base.Effect.element_threshold_factors`) makes every stick ramp round
+off in N steps, one per element reaching its own threshold, and there N shapes every ramp (the
+figures that showed both: docs/decisions.md). So once such an effect is in the model, the model
+is refitted at each count of :data:`ELEMENT_COUNTS`, then at the counts next to the best of them
+(:func:`refine_counts`), and the best kept. The refits are independent and run in parallel like
+the candidate fits (:mod:`rigctl.workbench.parallel`: the same workers, time limit and Dask
+scheduler).
 """
 
 from __future__ import annotations
@@ -28,14 +29,16 @@ from rigctl.workbench.model_choice import ModelChoice, effect_class
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, run_tasks
 
 ELEMENT_COUNTS: tuple[int, ...] = (5, 10, 20, 40)
-"""Counts tried first, a factor 2 apart; the best of them is then refined (REFINE_SPAN)."""
+"""Counts tried first, a factor 2 apart (a geometric grid: the ramp's rounding goes in steps of
+1/N); the best of them is then refined (REFINE_SPAN)."""
 REFINE_SPAN = 0.2
 """The counts within this fraction of the best coarse count (at least one either side) are tried
 next, at unit steps: with few elements one more or less changes the rounding of every stick ramp
-(held-out seed 5 case 1, generated with N = 9: the model with both hidden effects scored 2.63 at
-N = 10 and 0.51 refitted at N = 9)."""
+(each step is 1/N of it). The fraction is tuned, not derived: the coarse grid's factor 2 would
+call for about +-40 % (docs/decisions.md)."""
 REFINE_MAX = 6
-"""At most this many refinement counts, the nearest first."""
+"""At most this many refinement counts, the nearest first: a cost bound (each count is a refit);
+the value is tuned, not derived (docs/decisions.md)."""
 MIN_GAIN = 0.1
 """Another count is taken only where it removes at least this fraction of the model's error: it gets
 ``max_nfev`` more evaluations than the model, which alone gains a little. Among the other counts,
@@ -107,9 +110,9 @@ def refine_counts(n_best: int) -> list[int]:
 def _best_of(dataset: Dataset, result: FitResult, best: FitResult, counts: list[int], n_now: int,
              max_nfev: int, say: Callable[[str], None], run: dict[str, Any]) -> FitResult:
     """``best``, or the refit of ``result`` at one of ``counts`` that removes MIN_GAIN of
-    ``result``'s error and scores below ``best`` (held-out seed 3 case 3, generated with N = 38:
-    refitted at N = 20 and 40 the model scored 1.73 and 1.58 from 4.01 at N = 10; asking 40 to
-    gain MIN_GAIN on 20 as well kept 20)."""
+    ``result``'s error and scores below ``best``: MIN_GAIN offsets the extra evaluations a count's
+    refit has over ``result``, while the counts, refitted alike, are compared as equals (asking one
+    to gain MIN_GAIN on another as well would keep the coarser of two good counts)."""
     tasks = [CountTask(dataset, result.choice.with_values({"n_elements": n}), tuple(result.free),
                        max_nfev) for n in counts]
     outcomes = run_tasks(fit_at_count, tasks, **run)

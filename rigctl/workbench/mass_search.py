@@ -3,10 +3,9 @@
 The mass is the one parameter a local fit hardly moves on another rig's data: the drop shape, the
 overshoot and the ringing are not smooth in M, and where the sampling or a filtered sensor hides
 the ringing the error has valleys decades apart. Moving the mass alone from a fitted model says
-little, since the friction levels and stiffnesses fitted at the old mass no longer match: on
-held-out seed 4 case 5 (an 8.9 g slider behind a filtered force sensor, ``stribeck`` and
-``sensor_dynamics`` fitted at 54 g, error 2.26) every mass from 0.3 to 20 g scored 17 to 26 as it
-stood, and 1.19 to 21.9 once the rest of the model was refitted there (0.3 g: 1.19; 20 g: 1.70).
+little, since the friction levels and stiffnesses fitted at the old mass no longer match: a
+mass in a better valley scores worse than the fitted model until the rest is refitted there (the
+case that showed it: docs/decisions.md).
 
 :func:`refit_over_mass` therefore refits the model's free parameters (a local least-squares fit of
 :data:`REFIT_MAX_NFEV` evaluations) from each of
@@ -38,9 +37,9 @@ from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.parallel import TaskFailed, run_tasks
 
 REFIT_MASS_FACTORS: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 3.0, 10.0)
-"""Multiples of the model's mass each refit starts from: two decades below, one above, in half
-decades (fitted masses drift heavy where the data do not pin them: a 48 g preset mass was kept
-through a diagnosis of an 8.9 g slider)."""
+"""Multiples of the model's mass each refit starts from, in half decades (the error's valleys in M
+lie decades apart, module docstring): two decades below, one above. The asymmetry is tuned, not
+derived (docs/decisions.md)."""
 REFIT_MAX_NFEV = 24
 """Evaluations of each refit (the base fit's budget: each starts away from a fitted model)."""
 

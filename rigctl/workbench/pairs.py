@@ -1,33 +1,31 @@
 """Two effects at once, where no single one halves a misfit that stays structured.
 
 ``diagnose --auto`` adds one effect per round: the candidate that alone improves the model most.
-Two effects that act together can each gain little alone from the model's fit and much together.
-On a held-out campaign with load-dependent friction and a Stribeck slip law, from a refitted base
-at E = 16.2, neither alone was significant (Stribeck 16.2, rate-and-state 15.5), while the
-generating model scores 0.83; the Stribeck law fitted on top of the load-dependent friction's own
-fit went from 24.3 to 4.5 in one candidate fit.
+That greedy forward step misses effects that act together: each can gain little alone from the
+model's fit and much together, so neither is significant alone while the pair is.
 
 So where the misfit stays structured (E^2 > :data:`~rigctl.workbench.ranking.STRUCTURED_E2`) and no
 single candidate of the round halves it (none is significant, or the one ``--auto`` would add does
 not earn its place by :func:`~rigctl.workbench.ranking.earns_its_place`), the :data:`PAIR_FIRSTS`
 candidates that removed the largest fraction of their model's error alone are each continued with
 every other candidate added (a :class:`~rigctl.workbench.fitting.CandidateTask` on the first one's fit). Their
-fits may come from before ``diagnose`` refitted the model from a candidate's point: in the case
-above load-dependent friction took the first fit of the base from 49.5 to 24.3, and nothing from
-the refitted base at 16.2. The second effect may show nothing alone (Stribeck: 16.2 -> 16.2); the
-first must have removed at least 10 % of its model's error alone, and which of the two is fitted
-first decides where the pair's fit ends (24.3 -> 4.5 in one order, 47.4 -> 38.8 in the other).
+fits may come from before ``diagnose`` refitted the model from a candidate's point: a first
+effect's fit is a start, whatever model it began from, and a refit of the model is a new start,
+not a better one for every candidate. The second effect may show nothing alone; the first must
+have removed at least MIN_ERROR_REDUCTION of its model's error alone (the gain a significant
+candidate must make: less shows nothing to continue from). The fit is local and the error surface
+of two interacting effects is not convex, so which of the two is fitted first can decide where
+the pair's fit ends (where both are among the firsts, both orders are fitted and the better kept).
 The best pair is kept when it is significant against the model with both effects' parameters counted
 (:func:`~rigctl.workbench.ranking.score_candidate`) after the pairs within CLOSE_FACTOR of the best
 (at most MAX_CLOSE, each in its better order) were fitted on
-(:func:`~rigctl.workbench.fitting.fit_on`: the pair fits are short, and in the case above a wrong
-second effect, sensor dynamics, had ended at 3.40 where the fit with Stribeck, still descending,
-had stopped at 4.54) and then searched over their effects' parameters
-(:func:`~rigctl.workbench.effect_search.refit_over_effects`: fitted on, the hidden pair had stayed
-at 6.51, third, with a Stribeck velocity of 1.33 m/s against the generating 2.98, and a refit
-from three times that velocity ends at 1.29), and against the single effect ``--auto`` would otherwise add
+(:func:`~rigctl.workbench.fitting.fit_on`: the pair fits are short, so their ends rank where each
+fit stopped, not where it would converge) and then searched over their effects' parameters
+(:func:`~rigctl.workbench.effect_search.refit_over_effects`: the candidate scan placed each effect's
+parameters once, from the model it was added to, and a local fit of two effects can stay in the
+valley it started in), and against the single effect ``--auto`` would otherwise add
 (:func:`beats_single`); each of its effects must then earn its place in the final model like any
-other (``diagnose``'s pruning).
+other (``diagnose``'s pruning). The cases that led to each rule: docs/decisions.md.
 """
 
 from __future__ import annotations
@@ -93,8 +91,7 @@ def firsts(tried: Tried, n: int = PAIR_FIRSTS) -> list[str]:
     """The ``n`` candidates that removed the largest fraction of their model's error alone, of
     those that removed at least MIN_ERROR_REDUCTION of it (the gain a significant candidate must
     make): a fit that ended at or near its model's error (its effect switched off, or left where
-    it started) shows nothing to continue from. On the ENS spring-slider record the best moved
-    3.44 -> 3.32; twenty pair fits from there took eight minutes and found nothing."""
+    it started) shows nothing to continue from."""
     ok = [(-(e0 - res.error) / e0, name) for name, (res, e0) in tried.items()
           if name in res.choice.effects and math.isfinite(res.error)
           and res.error <= (1.0 - MIN_ERROR_REDUCTION) * e0
@@ -136,9 +133,8 @@ def best_pair(
     found = sorted((p for p in found if p.score.significant), key=lambda p: p.fit.error)
     if not found:
         return None
-    # the pair fits are short; those near the best are fitted on before one is chosen (held-out
-    # seed 4 case 11: a wrong second effect ended at 3.40 where the fit with the hidden one,
-    # still descending, had stopped at 4.54)
+    # the pair fits are short: their ends rank where each stopped, so those near the best are
+    # fitted on before one is chosen
     close = _one_order_each([p for p in found if p.fit.error <= CLOSE_FACTOR * found[0].fit.error])
     close = close[:MAX_CLOSE]
     if progress and len(close) > 1:
@@ -151,8 +147,8 @@ def best_pair(
             if progress:
                 progress(f"  {p.score.effect}: error {p.fit.error:.3g} -> {end.error:.3g}")
             p.fit = end
-    # and searched over their effects' parameters (held-out seed 4 case 11: the hidden pair, third
-    # at 6.51 after fitting on, ends at 1.29 refitted from three times its Stribeck velocity)
+    # and searched over their effects' parameters: a local fit of two effects can stay in the
+    # valley it started in (effect_search's module docstring)
     searched = refit_over_effects(dataset, [p.fit for p in close], [(p.first, p.second) for p in close],
                                   say=progress, workers=workers, scheduler=scheduler,
                                   timeout_s=timeout_s, in_process=in_process)
@@ -163,16 +159,18 @@ def best_pair(
 
 
 CLOSE_FACTOR = 1.5
-"""Pairs whose fit ends within this factor of the best one's are fitted on before one is chosen."""
+"""Pairs whose fit ends within this factor of the best one's are fitted on before one is chosen
+(a short fit still descending can end this far above where it converges). The value is tuned, not
+derived (docs/decisions.md)."""
 MAX_CLOSE = 3
-"""At most this many pairs (each in its better order) are fitted on."""
+"""At most this many pairs (each in its better order) are fitted on: a cost bound, each fit-on
+refitting the whole model. The value is tuned, not derived (docs/decisions.md)."""
 
 
 def _one_order_each(found: list[Pair]) -> list[Pair]:
     """The better order of each pair (``found`` sorted best first): both orders fit the same model,
-    so fitting both on would spend a place of the MAX_CLOSE on a second start of one pair (held-out
-    seed 4 case 11: load-dependent friction with contact degradation took two of the three places in
-    both orders, 4.81 and 5.2, and the hidden pair, with Stribeck at 6.61, was not fitted on)."""
+    so fitting both on would spend a place of the MAX_CLOSE on a second start of one pair and could
+    push another pair out of the places."""
     seen: set[frozenset[str]] = set()
     kept = []
     for p in found:
