@@ -87,8 +87,9 @@ def identify_model(
     and from the preset's end where that one is kept) unless
     the rig description states them (a rig knows its own; the simulated rig states them in every
     run, :data:`rigctl.model.simulator.STATED_RIG_PARAMS`): the preset's are this rig's, and
-    another rig's data, stiff or soft, heavy or light, need their own (a 1.4 g slider on a
-    preset-like stiffness otherwise had its ringing explained by a false interface damper). Each
+    another rig's data, stiff or soft, heavy or light, need their own (held at the preset's, their
+    misfit is taken up by whatever other parameter moves the ringing, a damper or an effect, and
+    that one is then reported falsely; docs/decisions.md). Each
     start is replaced by the ratio guess of
     :mod:`rigctl.workbench.guess` where that scores better. Parameters the rig description fixes
     are set and left out of the fit; those it bounds are fitted inside its range.
@@ -112,9 +113,9 @@ def identify_model(
         another = _another_rig(choice, scaled)
         if another:
             # on another rig's data both starts are fitted and the better end is kept: the error
-            # of a start far from the data says little (on a reciprocating record the preset,
-            # making large slips at the wrong friction level, scored 252 against 728 for the
-            # data-scale start, whose fit ends at 51 while the preset's fit did not move); the
+            # of a start far from the data says little about where its fit ends (a start that
+            # slips at the wrong level can score better than one at the data's scale whose fit
+            # then goes much further; docs/decisions.md); the
             # preset's start keeps its mass and damping in its first fit (a mass scan from the
             # preset would search decades away from the data, and small masses cost the engine
             # most): they are fitted on from its end where that end is kept (below)
@@ -126,17 +127,17 @@ def identify_model(
              for c, e, dyn in starts]
     results = _fit_starts(tasks, workers)
     # an end whose model misses most slips is a trap, not a fit, whatever its error: from a start
-    # that already missed them the fit cannot move (each missing slip costs a fixed z), and on a
-    # held-out rig such an end (the preset, 9.36) beat the data-scale fit and was kept unmoved
+    # that already missed them the fit cannot move (each missing slip costs a fixed z), and its
+    # capped error can still beat a fit that makes the slips
     ends = [(r, dyn) for r, (_, _, dyn) in zip(results, starts, strict=True)]
     made_slips = [end for end in ends if not end[0].misses_most_slips]
     best, fitted_dynamics = min(made_slips or ends, key=lambda end: end[0].error)
     if not fitted_dynamics and _dynamics_to_fit(dataset, best.free):
         # the preset's start won on another rig's data: its stiffness and friction are now the
         # data's, so its mass and damping (still the preset's) are scanned and fitted on from
-        # there; kept as they were they stayed the preset's through every later fit (held-out
-        # seed 4 case 5: a 48 g preset mass for an 8.9 g slider, and the hidden sensor_dynamics
-        # then took the stribeck model only from 5.63 to 4.42, against 4.53 to 2.55 with them fitted)
+        # there; kept as they were they would stay the preset's through every later fit (a local
+        # fit hardly moves the mass, mass_search's module docstring), and the effects fitted later
+        # would take up their misfit (docs/decisions.md)
         best = _fit_from(dataset, best.choice, best.error, free, fns, free_dynamics=True,
                          max_nfev=max_nfev, with_uncertainty=with_uncertainty)
     return best
@@ -360,9 +361,10 @@ def _scan(
         walks.append(walk)
     walks.sort(key=lambda w: w.best[0])
     for walk in walks[:n_keep]:
-        # the kept starts walk on while a step still gains (held-out 3/6: wear's best scan point
-        # 957 -> 388 -> 725 -> 249 -> 158 over four steps, and its fit then ends at 2.61, not at
-        # the 5.48 it reached from 388)
+        # the kept starts walk on while a step still gains (up to GN_MORE_ITERATIONS steps, until
+        # GN_STALL in a row gain less than GN_MIN_GAIN): a Gauss-Newton walk from a scan point
+        # far from the base's optimum need not be monotone, and where the local fit starts
+        # decides where it ends
         walk.advance(dataset, choice, base_free, (lo, hi), fns, GN_MORE_ITERATIONS)
     walks.sort(key=lambda w: w.best[0])
     return [w.best for w in walks[:n_keep]], J_effect_on
@@ -571,8 +573,8 @@ def _fit_candidate(task: CandidateTask, with_uncertainty: bool) -> FitResult:
     starts, J_on = _scan(dataset, choice, base_free, J_base,
                          _scan_points(eff_free, defaults, offs), n_keep=N_STARTS)
     if offs and not math.isfinite(starts[0][0]):
-        # no scan point is physically valid on this model (the ENS record's base fit: stribeck at
-        # every vs_m_per_s): a fit from an invalid start ran into the 300 s time limit; the
+        # no scan point is physically valid on this model: a fit from an invalid start has no
+        # valid point to step from and runs into the time limit (docs/decisions.md); the
         # effect is reported switched off at once
         return _switched_off(base, choice, offs, tuple(fp.name for fp in free), 0,
                              f"{SWITCHED_OFF} (no physically valid start on this model)")

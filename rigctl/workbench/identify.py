@@ -127,9 +127,10 @@ class FitResult:
 MAX_MISSING_FRACTION = 0.5
 """A model that misses more than this fraction of the measured slips is no description of the
 data, whatever its error: each missing slip costs a fixed z (:data:`~rigctl.workbench.metrics.
-MISSING_EVENT_Z`), so a model that makes no slips scores a flat error that no small step changes (a
-trap: on a reciprocating record a fit left its start for a model with 1 slip of 28 that scored 4.7
-against 51 for one pairing wrong slips). Starts that miss them are refused
+MISSING_EVENT_Z`), so a model that makes no slips scores a flat error that no small step changes,
+and that capped charge can score below a model that makes every slip but pairs them badly (a
+trap). Half: beyond it the model describes fewer of the measured slips than it leaves out (the
+case that showed the trap: docs/decisions.md). Starts that miss them are refused
 (:func:`rigctl.workbench.fitting.identify_model`), and a fit ends at the best point visited that
 does not (:class:`Objective`)."""
 
@@ -141,9 +142,8 @@ def misses_most_slips(dataset: Dataset, comparisons: Sequence[RunComparison]) ->
     A measured slip paired with the model's first slip of its segment for want of a later one (a
     *stand-in*, :func:`~rigctl.workbench.alignment.stand_in_pairs`) is missed too: the model has no
     slip of its own for it, and the metric charges it as a missing slip (capped z). Counting only
-    the unpaired ones let the trap through in another form: on a held-out TLRE with 12 slips, fits
-    that made one slip, its 11 followers stand-ins, scored 12.7 to 17 against 43 for the base fit
-    that made all 12."""
+    the unpaired ones would let the trap through in another form: a model that makes only the
+    first slip of each segment, its followers stand-ins, charged at the cap (docs/decisions.md)."""
     missing = sum(int(np.count_nonzero(c.missing["drop_N"])) + int(np.count_nonzero(c.stand_in))
                   for c in comparisons)
     return missing > MAX_MISSING_FRACTION * max(dataset.n_events, 1)
