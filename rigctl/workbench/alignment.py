@@ -26,10 +26,10 @@ sub-micrometre differences (the stop's corner is located to a few samples in the
 position). Both are the same stick cycle: the same peak and drop, the same stage travel. So for
 pairing, a slip within ``HOLD_TIE_S`` of the start of a hold is counted as the first slip of the
 phase after the hold, in the measurement and in the model alike (:func:`pairing_segments`).
-Without this, a no-effect control slide-hold-slide campaign whose record slipped at the stop of its
-30 s hold, while the model (on the simplified drive) slipped at the restart, scored 1.46 with the
-generating parameters, and a velocity-dependent friction "explained" the tie (docs/workbench.md,
-section 10).
+Without this, one stick cycle that slipped at the stop in one record and at the restart in the
+other is charged as a missing slip in the hold and paired with the wrong cycle after it, even for
+the generating model, and an effect that shifts slips in time is credited with the tie
+(docs/workbench.md, section 10; the case: docs/decisions.md).
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """The data's own scale: starting values of a model of another rig, read from the record alone.
 
 The model's preset is this rig (paper Sec. 5.3: Fn = 300 N, K0 = 1.475e6 N/m, M = 0.048 kg). A
-record of another rig (a 0.3 N spring-slider with a 168 N/m spring, a 5 N tribometer, a rock biax
-at MPa) lies decades away, and a local fit started at the preset never leaves it. So before any fit
+record of another rig (a spring-slider at a fraction of a newton on a spring of some hundred N/m, a
+tribometer at a few newtons, a rock biax at MPa) lies decades away, and a local fit started at the
+preset never leaves it. So before any fit
 the base parameters are set from what the measured events show directly (no simulation):
 
 * **friction levels** from the stable peaks and troughs over Fn. A slip from rest at mu_s Fn with

@@ -35,10 +35,11 @@ def model_drive(run: PreparedRun) -> Drive:
 MODEL_SLIPS_PER_SAMPLE = 4
 """A model run inside a fit that slips more than this many times per output sample on average
 (and more than MODEL_SLIPS_MIN times) is stopped and counts as one that cannot be run: the record
-cannot show slips that close together, and integrating them is what costs. At the 0.3 N load of the
-ENS record a presliding candidate chattered through 4.9 million slips (40 per sample) in 64 s and
-2.4 GB inside one candidate fit; the tribometer record's fits meet models with up to 1.2 slips per
-sample (52,878) that are fitted normally."""
+cannot show slips that close together (it shows a slip as a fall between samples, so at most one
+per sample interval), and integrating them is what costs, in time and memory.
+The sampling limit is one per sample; the margin of four over it is tuned, not derived: models a
+fit passes through may slip somewhat more often than the record shows and must still be fitted
+(docs/decisions.md)."""
 MODEL_SLIPS_MIN = 100_000
 
 

@@ -9,9 +9,9 @@
   relative cost) the 6 x is per unit of cost: ``6 x max(finished time / cost) x cost``, so a task
   known to be slower (a candidate whose simulation costs six times more) is not stopped for it.
   No task is stopped before it has run as long as the slowest finished task took: the cost is a
-  short probe's, and a cheap probe must not give a fit less time than a typical one needs (on a
-  held-out campaign under load five candidates were stopped at the 20 s floor after fits of 58
-  and 73 s had finished).
+  short probe's, and a cheap probe must not give a fit less time than a typical one needs (the
+  probe's cost does not bound the fit's: a fit's time also depends on where its parameters go;
+  docs/decisions.md).
 * ``in_process=True``: the tasks run one after the other in this process (no protection; for
   debugging and profiling).
 * ``scheduler="tcp://host:port"`` (or a ``distributed.Client``): the tasks go to that Dask
