@@ -31,10 +31,13 @@ search".)
    that cannot be run after both, so the trap (a flat error no step leaves) is never the answer
    while another point exists. It ends when its best cost stops falling by more than the
    scatter (TOL_COST).
-5. **Polish**: bounded least squares (scipy's trust-region reflective) from the best point, its
-   Jacobians' columns evaluated in parallel, until a step gains less than the scatter; then the
-   answer's uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`), as
-   ``identify_model`` reports them.
+5. **Polish**: bounded least squares (scipy's trust-region reflective) from the best point, in
+   coordinates measured in each column's resolvable finite-difference step (:meth:`_Search.
+   polish`: the trust region then spans about one such step per coordinate, whatever the
+   parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
+   than the scatter or a trial step is shorter than the residual resolves; then the answer's
+   uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`), as ``identify_model``
+   reports them.
 
 The population is evaluated in parallel worker processes holding the dataset once
 (:mod:`rigctl.workbench.search_pool`). One :class:`~rigctl.workbench.budget.Budget` bounds
@@ -64,6 +67,8 @@ from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
     FAILED_FACTOR,
     FAILED_RESIDUAL,
+    FD_CHANGE_MAX,
+    FD_CHANGE_MIN,
     FD_STEP,
     FitResult,
     fn_range,
@@ -103,6 +108,11 @@ cma's ``tolfun``); the polish stops once a Gauss-Newton step gains less."""
 FD_TRIES = 3
 """Forward differences tried per Jacobian column at most: identify's adaptive rule (its step
 grows or shrinks until the residual moves by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units)."""
+RESOLVED_STEP = FD_CHANGE_MIN / FD_CHANGE_MAX
+"""The polish's shortest trial step, in units of each coordinate's finite-difference step (the
+step that moved the residual by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units): over a tenth of it
+even the steepest column moves the residual by FD_CHANGE_MIN at most, the jitter floor below
+which identify's step rule does not trust a change, so a shorter step cannot be judged."""
 METRIC_QUANTILE = 0.25
 """CMA-ES's initial standard deviation along each direction is this fraction of the interval where
 the optimum is expected (Hansen 2016, appendix B: sigma0 about a quarter of the search interval)."""
@@ -177,8 +187,9 @@ def polish_reserve(n: int, with_uncertainty: bool, jacobian: int) -> int:
 
 
 class _ConvergedError(Exception):
-    """The polish's last step gained less than TOL_COST, or the budget cannot pay its next
-    Jacobian: it ends at the best point seen."""
+    """The polish's last step gained less than TOL_COST, its trial steps fell below
+    RESOLVED_STEP, or the budget cannot pay its next Jacobian: it ends at the best point seen
+    (the message says which)."""
 
 
 class _Search:
@@ -477,29 +488,50 @@ class _Search:
 
     def polish(self) -> None:
         """Bounded least squares (trust-region reflective, as identify's fits) from the best
-        point, the element count held; each Jacobian as :meth:`jacobian` (its columns evaluated
-        in parallel). Ends when a step gains less than TOL_COST (before that step's Jacobian is
-        taken) or when the budget left would not pay for another Jacobian and the answer."""
+        point, the element count held, in coordinates measured in each column's resolvable step.
+
+        Each coordinate j is scaled by its finite-difference step h_j as :meth:`jacobian` last
+        adapted it, z_j = (u_j - u0_j) / h_j: h_j is the step over which the residual was
+        measured to move by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units, i.e. the scale on which
+        the residual is both resolved and linear, and these steps differ by factors of 50 between
+        coordinates (a friction level against a log stiffness). In z, least_squares' trust region
+        (a sphere of its scaled variables; scipy's ``x_scale`` is the same rescaling) spans about
+        one such step per coordinate, where its linear model holds, instead of one radius for all
+        in internal units; and z starts at 0, so its first radius is scipy's default 1 (one
+        resolvable step), not |u0|, a norm of log-values that depends on the parameters' units.
+        For the same reason scipy's ``xtol`` (relative to |x|) is not used (None): the
+        polish ends where a trial step is shorter than :data:`RESOLVED_STEP` in z (the residual
+        moves by less than its jitter over it: no step that short can be judged), where a step
+        gains less than TOL_COST (before that step's Jacobian is taken), or when the budget left
+        would not pay for another Jacobian and the answer. Jacobians as :meth:`jacobian` (columns
+        evaluated in parallel)."""
         at = self.residual_best
         if at is None or not self.cols:
             return
         used = self.budget.used
         cols = self.cols
         x_full = at[0].copy()
-        lo, hi = self.space.lower[cols], self.space.upper[cols]
-        u0 = np.clip(x_full[cols], lo, hi)
+        u0 = np.clip(x_full[cols], self.space.lower[cols], self.space.upper[cols])
+        h = np.array([self.steps.get(j, FD_STEP) for j in cols])
+        lo = (self.space.lower[cols] - u0) / h
+        hi = (self.space.upper[cols] - u0) / h
         vectors: dict[bytes, FloatArray] = {}
         m = at[1].shape[0]
+        current = np.zeros(len(cols))
+        """The polish's accepted point (z): where its last Jacobian was taken."""
 
-        def point(u: FloatArray) -> FloatArray:
+        def point(z: FloatArray) -> FloatArray:
             x = x_full.copy()
-            x[cols] = u
+            x[cols] = u0 + h * z
             return x
 
-        def fun(u: FloatArray) -> FloatArray:
-            key = np.asarray(u, dtype=np.float64).tobytes()
+        def fun(z: FloatArray) -> FloatArray:
+            z = np.asarray(z, dtype=np.float64)
+            key = z.tobytes()
             if key not in vectors:
-                o = self.evaluate([point(u)])[0]
+                if last and float(np.linalg.norm(z - current)) < RESOLVED_STEP:
+                    raise _ConvergedError("a trial step was below the residual's resolution")
+                o = self.evaluate([point(z)])[0]
                 vec = o.vector if o.vector is not None else \
                     np.full(m, math.sqrt(self.failed_cost / m))
                 if len(vectors) > 64:
@@ -509,26 +541,27 @@ class _Search:
 
         last: list[float] = []
 
-        def jac(u: FloatArray) -> FloatArray:
-            r = fun(u)
+        def jac(z: FloatArray) -> FloatArray:
+            z = np.asarray(z, dtype=np.float64)
+            r = fun(z)
             cost = float(r @ r)
             if last and last[-1] - cost < TOL_COST:
-                raise _ConvergedError
+                raise _ConvergedError("a step gained less than the scatter")
             left = self.budget.evaluations_left() - 1 - \
                 (self.jacobian_cost() if self.with_uncertainty else 0)
             if left < self.jacobian_cost() + 1:
-                raise _ConvergedError
+                raise _ConvergedError("the budget would not pay another Jacobian")
             last.append(cost)
-            return self.jacobian(point(np.asarray(u, dtype=np.float64)), r)[:, cols]
+            current[:] = z
+            return self.jacobian(point(z), r)[:, cols] * h
 
         self.budget.report("local polish")
-        message = "ended where a step gained less than the scatter"
         try:
-            sol = least_squares(fun, u0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0,
-                                ftol=1e-4, xtol=1e-4, gtol=1e-6)
+            sol = least_squares(fun, np.zeros(len(cols)), jac=jac, bounds=(lo, hi),
+                                method="trf", x_scale=1.0, ftol=1e-4, xtol=None, gtol=1e-6)
             message = str(sol.message)
-        except _ConvergedError:
-            pass
+        except _ConvergedError as stop:
+            message = f"ended where {stop}"
         self.stages.append(f"polish {self.budget.used - used} ({len(last)} Jacobians; "
                            f"{message})")
 
