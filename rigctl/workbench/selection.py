@@ -121,6 +121,22 @@ def _finite(e: float) -> float:
     return e if math.isfinite(e) else math.inf
 
 
+def screen_sets(
+    dataset: Dataset, model: FitResult, sets: Sequence[tuple[str, ...]], *, screen: FitFn,
+    say: Say = lambda _m: None,
+) -> list[tuple[tuple[str, ...], float]]:
+    """Each effect set added to ``model`` and fitted by the short fit ``screen``: the sets and
+    their errors, best first (a fit that fails ranks last). The first SCREEN_KEEP are the ones a
+    forward step fits fully."""
+
+    def short(effects: tuple[str, ...]) -> tuple[tuple[str, ...], float]:
+        res = screen(dataset, with_effects(model.choice, effects))
+        say(f"  screened {' + '.join(effects)}: {res.error:.3g}")
+        return effects, _finite(res.error)
+
+    return sorted((short(s) for s in sets), key=lambda s: s[1])
+
+
 def forward_step(
     dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
     say: Say,
@@ -128,16 +144,10 @@ def forward_step(
     """One forward step from ``model``: the set to add (None: nothing significant) and the trials.
     """
     n = dataset.n_events
-
-    def short(effects: tuple[str, ...]) -> tuple[tuple[str, ...], float]:
-        res = screen(dataset, with_effects(model.choice, effects))
-        say(f"  screened {' + '.join(effects)}: {res.error:.3g}")
-        return effects, _finite(res.error)
-
-    singles = sorted((short((c,)) for c in pool), key=lambda s: s[1])
+    singles = screen_sets(dataset, model, [(c,) for c in pool], screen=screen, say=say)
     pair_sets = [tuple(sorted((a[0][0], b[0][0])))
                  for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
-    pairs = sorted((short(p) for p in pair_sets), key=lambda s: s[1])
+    pairs = screen_sets(dataset, model, pair_sets, screen=screen, say=say)
     trials: list[Trial] = []
     for effects, e_screen in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
         res = fit(dataset, with_effects(model.choice, effects))
