@@ -7,9 +7,8 @@ measured Fn also moves with Ft: in the library's ``normal_coupling`` effect
     Fn,measured = Fn,applied + kappa Ft        (rigctl/model/effects/normal_coupling.py)
 
 Taken into the drive as it is, that swing is counted twice by a model with the coupling (its own
-kappa Ft comes on top) and stands for it in a model without it. On a held-out rig (kappa 0.126,
-Ft about 64 N at 176 N) the drive's normal force followed the measured swing, 176.8 -> 187.7 ->
-181.2 N, and the generating model scored E = 11 on its own noise-level data.
+kappa Ft comes on top) and stands for it in a model without it: even the generating model then
+misfits its own data (the case: docs/decisions.md).
 
 The coupling shows where Ft jumps: in a slip Ft falls within a few samples while the applied load
 does not move, so over those samples dFn = c dFt. ``c`` is the least-squares ratio over the steps
@@ -109,8 +108,8 @@ def applied_normal_force(ft_N: FloatArray, fn_N: FloatArray,
     """The applied normal load ``Fn - c Ft`` and ``c`` where ``c`` is significant (MIN_T_RATIO
     standard errors from 0); else ``fn_N`` unchanged and 0. ``ratio``: ``(c, se)`` of the
     campaign (:func:`campaign_coupling`); None: read from this record. Not only the swing matters:
-    the mean of ``c Ft`` lifts the whole measured level (6 N at 176 N on the held-out rig, where the
-    drive fit kept the swing within its tolerance but at the measured level)."""
+    the mean of ``c Ft`` lifts the whole measured level (by c times the mean Ft, which a drive fit
+    keeps even where the swing lies within its tolerance)."""
     c, se = coupling_ratio(ft_N, fn_N) if ratio is None else ratio
     if c == 0.0 or abs(c) < MIN_T_RATIO * se:
         return fn_N, 0.0

@@ -76,11 +76,9 @@ the dark level for its Fn to be read)."""
 MIN_PARTS = 4
 """Parts with r(k) needed for the tilt."""
 TILT_FLOOR = 0.02
-"""Scatter floor of the tilt: what reading the load from light at 10 parts can do. On simulated
-runs whose truth is known the reading missed by up to 0.034 (0.866 +- 0.023 for 0.9 on a run of
-the simulated rig whose release the camera saw in four frames, so that only the front half of the
-contact was read), 0.023 at 0.5 and 0.01 elsewhere; a standard error from 5-8 parts' scatter can
-come out smaller than that."""
+"""Scatter floor of the tilt: what reading the load from light at 10 parts can do, calibrated on
+simulated runs whose truth is known (a calibration, not a derivation: docs/decisions.md); a
+standard error from 5-8 parts' scatter can come out smaller than that."""
 VAR_FLOOR = 0.001
 """Scatter floor of the stable-stage change of the back share (a share: 0.1 % of the contact)."""
 STABLE_LOAD_TOL = 0.05

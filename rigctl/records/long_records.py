@@ -25,8 +25,10 @@ from rigctl.records.drive_profile import drive_profile
 from rigctl.records.events import DetectionSettings, detect_slips
 
 MAX_SLIPS = 480
-"""Slips of one record compared in full; above this the record is windowed (a 60 s record of
-the ENS spring-slider has about 100, a 3x TLRE of this rig about 60)."""
+"""Slips of one record compared in full; above this the record is windowed. A cost bound: several
+times the slips of one protocol run (tens to a hundred), so protocol runs are compared in full and
+only records of long sliding are windowed. The value is a choice, not derived
+(docs/decisions.md)."""
 N_WINDOWS = 8
 """Windows a long record is compared on (their slips: MAX_SLIPS / N_WINDOWS each)."""
 WINDOW_KEY = "rigctl_windows"

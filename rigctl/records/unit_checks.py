@@ -6,9 +6,10 @@ makes a 1 kHz record a 1 Hz one, a stage position in micrometres a drive of metr
 tangential force in kN a friction coefficient of 1e-4. The workbench cannot tell a mistake from an
 unusual rig, so these are warnings in the dataset's notes (shown first by ``compare`` and
 ``diagnose``, in the JSON and the report), naming the column and the unit it may be in; the record
-is still analysed. The bounds are wide: they hold for the rigs of the held-out benchmark (normal
-force 0.5 N to 5 kN, stiffness 1e2 to 1e7 N/m, friction 0.1 to 0.8), the paper's rig, a
-spring-slider at 4 mm/s and a reciprocating tribometer.
+is still analysed. The bounds are wide: each lies a factor of five or more outside the scales
+friction records have (sample rates of 100 Hz to 20 kHz, slow drives, friction coefficients of
+about 0.01 to 2, probes over micrometres to millimetres), while a unit slip moves a value by a
+factor of a thousand or more, so an unusual rig is not flagged and a wrong unit is.
 """
 
 from __future__ import annotations
