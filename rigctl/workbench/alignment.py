@@ -29,7 +29,7 @@ phase after the hold, in the measurement and in the model alike (:func:`pairing_
 Without this, one stick cycle that slipped at the stop in one record and at the restart in the
 other is charged as a missing slip in the hold and paired with the wrong cycle after it, even for
 the generating model, and an effect that shifts slips in time is credited with the tie
-(docs/workbench.md, section 10; the case: docs/decisions.md).
+(docs/validation.md; the case: docs/decisions.md).
 """
 
 from __future__ import annotations

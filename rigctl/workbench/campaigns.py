@@ -21,7 +21,7 @@ velocity, and that is set by the slip's own dynamics, not by the drive: a slip o
 contact of stiffness k and mass m runs at about dF / sqrt(k m) (70 mm/s at 300 N in the simulated
 rig), whatever the stage does at 5-50 um/s. Halving Fn halves the drop and the slip velocity, so the
 same velocity steps at two loads move the slips across v_s. At one load only, a weakening whose v_s
-lies well below the slip velocity is just a lower mu_k (docs/workbench.md, section 10).
+lies well below the slip velocity is just a lower mu_k (docs/validation.md).
 """
 
 from __future__ import annotations
