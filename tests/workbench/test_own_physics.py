@@ -43,7 +43,7 @@ library has to a friction that varies with the position."""
 
 # The user's effect: the same physics in their own words. A phase is fitted as two amplitudes
 # (a_cos, a_sin: linear in the term, no wrap-around), the wavelength bounded around the period the
-# report gave (converted to X as in the module docstring) - what docs/workbench.md advises.
+# report gave (a period in time read as one of X at the drive velocity) - what docs/workbench.md advises.
 USER_PLUGIN = '''
 """my_waviness: friction periodic along the track, mu (1 + a_c cos(2 pi X / L) + a_s sin(...))."""
 import math
