@@ -71,6 +71,7 @@ from rigctl.workbench.identify import (
     FD_CHANGE_MIN,
     FD_STEP,
     FitResult,
+    Objective,
     fn_range,
     free_params,
     next_fd_step,
@@ -338,22 +339,26 @@ class _Search:
     # -- stages -------------------------------------------------------------------------------
 
     def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; from the better, every effect off, and
-        Sobol points over the plausible ranges of the coordinates whose start is a guess (as many
-        as a population, rounded up to a power of two to keep the Sobol sequence balanced)."""
+        """The model's values and its data-scale start; each of them and the best with every
+        effect off (the model's values with its effects off are the fit they were added to: a
+        search from there never ends worse than that fit); from the best, Sobol points over the
+        plausible ranges of the coordinates whose start is a guess (as many as a population,
+        rounded up to a power of two to keep the Sobol sequence balanced)."""
         used = self.budget.used
-        self.rank_starts([self.space.vector(c) for c in choices])
+        given = [self.space.vector(c) for c in choices]
+        self.rank_starts(given)
         guess = self.ratio_guess(choices[0])
         if guess is not None:
             self.rank_starts([guess])
         if self.space.spread:
             x0 = self.x_best
             points = []
-            if self.space.off:
-                off = x0.copy()
-                for i, u in self.space.off.items():
-                    off[i] = u
-                points.append(off)
+            seen = {x.tobytes() for x in given}
+            for x in (*given, x0):  # each start with its effects off: the model's own values
+                off = self.space.off_point(x)  # off are the fit the effects were added to
+                if off.tobytes() not in seen:
+                    seen.add(off.tobytes())
+                    points.append(off)
             idx = sorted(self.space.spread)
             m = max(1, math.ceil(math.log2(popsize(self.space.dim))))
             unit = qmc.Sobol(d=len(idx), scramble=True, seed=self.seed).random_base2(m)
@@ -566,8 +571,14 @@ class _Search:
                            f"{message})")
 
     def finish(self, choice: ModelChoice) -> FitResult:
-        """The best point seen as the answer: its model evaluated once, with uncertainties."""
-        values = self.space.values(self.x_best)
+        """The best point seen as the answer: its model evaluated once, with uncertainties.
+
+        Its values are those the search evaluated there (:meth:`Objective.values`): with the mass
+        a resolved ringing ties to the stiffnesses, which is no coordinate of the space."""
+        point = self.space.point(self.x_best)
+        values = Objective(self.pool.dataset, choice, list(self.space.free)).values(point.u)
+        if point.n_elements is not None:
+            values["n_elements"] = float(point.n_elements)
         model = choice.with_values(values)
         used = self.budget.used
         with_uncertainty = self.with_uncertainty and \

@@ -16,6 +16,12 @@ CMA Evolution Strategy: A Tutorial*, 2016, appendix B):
   them; the spread starts are drawn there too. A log-scaled effect parameter with no typical
   deviation from off: within :data:`DYNAMICS_FACTOR` of its default;
 * the element count: within its bounds :data:`N_ELEMENTS_RANGE`.
+
+Every effect's off value is a point of the space exactly (:class:`ExactOff`): the start with the
+effects off is the model without them bit for bit (the effect contract: at its off values an
+effect leaves every output unchanged), so a search from a fitted model with an effect added can
+always return to that fit. The element count's bounds include the model's own count for the same
+reason.
 """
 
 from __future__ import annotations
@@ -62,6 +68,27 @@ a simulation's cost grows with N."""
 
 
 @dataclass(frozen=True)
+class ExactOff(FreeParam):
+    """A free effect parameter whose off value maps to and from its internal coordinate exactly.
+
+    ln and exp (or a division and a multiplication by the scale) do not round-trip every float:
+    exp(ln 3) is 3.0000000000000004, and an effect at 3.0000000000000004 of its off value 3 is not
+    off (its terms stay active, and an n_cycles of 3 plus an ulp is another model). At the
+    internal coordinate of the off value this returns the off value itself."""
+
+    off_p: float
+
+    @property
+    def off_u(self) -> float:
+        return FreeParam.to_u(self, self.off_p)
+
+    def to_p(self, u: float) -> float:
+        if u == self.off_u:
+            return self.off_p
+        return FreeParam.to_p(self, u)
+
+
+@dataclass(frozen=True)
 class SearchSpace:
     """The search vector: ``free``'s internal coordinates, then log2 N where ``count``."""
 
@@ -101,6 +128,14 @@ class SearchSpace:
             if j in values:
                 x[i] += a * (values[j] - x0[j])
         return x
+
+    def off_point(self, x: FloatArray) -> FloatArray:
+        """``x`` with every effect at its off value (:attr:`off`): from a start that is a fitted
+        model with effects added, exactly that fit."""
+        out = np.array(x, dtype=np.float64)
+        for i, u in self.off.items():
+            out[i] = u
+        return out
 
     @property
     def dim(self) -> int:
@@ -152,8 +187,11 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
                 fp = replace(fp, scale=typical)
             u_lo, u_hi = sorted((fp.to_u(lo), fp.to_u(hi)))
             spread[i] = (u_lo, u_hi)
-            if math.isfinite(p_off):  # an off value outside the bounds (0 of a log parameter):
-                off[i] = fp.to_u(min(max(p_off, fp.lower), fp.upper))  # the nearest bound
+            if math.isfinite(p_off):  # inside the bounds by the effect contract; a rig's
+                # narrower bounds that exclude it leave the nearest value they allow
+                fp = ExactOff(fp.name, fp.lower, fp.upper, fp.log, fp.scale,
+                              min(max(p_off, fp.lower), fp.upper))
+                off[i] = fp.off_u
             std.append(0.25 * (u_hi - u_lo))
         elif fp.name in DYNAMIC_PARAMS and fp.log:
             v = table[fp.name].value
@@ -173,8 +211,10 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
     count = spreads_elements and "n_elements" not in rig.fixed
     if count:
         lo_n, hi_n = (math.log2(n) for n in N_ELEMENTS_RANGE)
-        lower.append(lo_n)
-        upper.append(hi_n)
+        own = [math.log2(max(t["n_elements"].value, 1.0)) for t in
+               ({p.name: p for p in choice.parameter_table()}, table)]
+        lower.append(min(lo_n, *own))  # the model's own count stays a point of the space
+        upper.append(max(hi_n, *own))
         spread[len(out)] = (lo_n, hi_n)
         std.append(0.25 * (hi_n - lo_n))
     return SearchSpace(tuple(out), np.array(std), np.array(lower), np.array(upper), spread, count,

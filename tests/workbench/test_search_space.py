@@ -1,0 +1,63 @@
+"""The search's space and starts (rigctl/workbench/search_space.py, search.py): every effect's off
+value is a point of the space exactly, and a search from a fit with an effect added never ends
+worse than that fit (the start with the effect off is one of its points)."""
+
+from __future__ import annotations
+
+import pytest
+
+from rigctl.model import build_model
+from rigctl.model.effects import LIBRARY
+from rigctl.records.dataset import Dataset, prepare_dataset
+from rigctl.workbench.budget import Budget
+from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
+from rigctl.workbench.element_count import spreads_elements
+from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
+from rigctl.workbench.search_space import build_space
+from rigctl.workbench.selection import with_effects
+from tests.workbench.hidden import MAGNITUDE, TEST_BASE, scaled_values
+
+HIDDEN = "load_dependent_friction"
+
+
+@pytest.fixture(scope="module")
+def dataset() -> Dataset:
+    """A short force sweep with the load dependence hidden (the selection screen's case)."""
+    model = build_model("paper", effects=[HIDDEN], params=TEST_BASE,
+                        effect_params={HIDDEN: scaled_values(HIDDEN, MAGNITUDE)})
+    runs = simulate_campaign(model, PROTOCOL_FOR_EFFECT[HIDDEN], seed=3, velocity_m_s=2e-5,
+                             duration_scale=0.3)
+    return prepare_dataset(runs)
+
+
+@pytest.mark.parametrize("effect", sorted(LIBRARY))
+def test_every_effects_off_point_is_the_model_without_it(dataset, effect):
+    base = ModelChoice("paper").with_values({**TEST_BASE, "n_elements": 7})
+    choice = with_effects(base, (effect,))
+    space = build_space(dataset, choice, choice, spreads_elements(choice))
+    x_off = space.off_point(space.vector(choice))
+    values = space.values(x_off)
+    table = {p.name: p for p in choice.parameter_table()}
+    offs = LIBRARY[effect]().off_values({n: p.value for n, p in table.items() if "." not in n})
+    for name, value in values.items():
+        if name.startswith(effect + "."):
+            assert value == offs[name.split(".", 1)[1]], name  # exactly, not to an ulp
+        else:  # ln and exp of a base value: to an ulp
+            assert value == pytest.approx(table[name].value, rel=1e-14, abs=0.0), name
+    off_model = choice.with_values(values)
+    assert evaluate(dataset, off_model).score.error == pytest.approx(
+        evaluate(dataset, base).score.error, rel=1e-9)
+
+
+def test_a_search_from_a_fit_with_an_effect_added_never_ends_worse_than_that_fit(dataset):
+    # a short fit (no global stage): presliding at its default is far worse than the fit it was
+    # added to, and so is the data-scale start with presliding off; the fit itself with the effect
+    # off must be among the starts
+    short = Budget(max_evaluations=60)
+    base = search_model(dataset, ModelChoice("paper"), budget=short, workers=0,
+                        with_uncertainty=False)
+    res = search_model(dataset, with_effects(base.choice, ("presliding",)),
+                       budget=Budget(max_evaluations=60), workers=0, with_uncertainty=False)
+    assert res.error <= base.error * (1.0 + 1e-9)
