@@ -14,8 +14,9 @@ bisection (50 halvings), and the event is applied as in :mod:`rigctl.model.kerne
 The terms come as one tuple (:meth:`rigctl.model.terms.TermSet.bundle`): for each kind (friction,
 force, state law) a tuple of compiled first-class functions, a tuple of their parameter vectors and
 the bounds of each one's state in ``z``. The library's laws (:mod:`rigctl.model.friction_laws`)
-give the coefficient each friction term receives; the Stribeck bound e is capped by the law at
-every step end (without the finer sub-step grid of the exact path's nonlinear slips).
+give the coefficient each friction term receives; the Stribeck bound e is capped at every step end
+as on the exact path (:func:`rigctl.model.kernel.nonlinear_slip.cap_on_step`, the law's minimum
+within the step included).
 """
 
 from __future__ import annotations
@@ -39,10 +40,11 @@ from rigctl.model.kernel.inputs import Segment, segment_at
 from rigctl.model.kernel.nonlinear_slip import (
     AGING_STEP_LIMIT,
     aging_limited_step,
+    cap_on_step,
     kinetic_mu,
     rk_step_s,
     slip_friction,
-    stribeck_law,
+    step_laws,
 )
 from rigctl.model.kernel.walk import STEP, apart, current_knot, step_end, write_due_sample
 from rigctl.model.layout import (
@@ -61,7 +63,6 @@ from rigctl.model.layout import (
     P_RS_B,
     P_RS_DC,
     P_TAU_S,
-    P_VS,
     RET_SLIP_END,
     RET_TERM_ERROR,
     S_K_USED,
@@ -303,6 +304,30 @@ def _end_slip(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: np.ndarray, i
 
 
 @njit(cache=True)
+def _cap_e(cp: np.ndarray, terms: Any, sign: int, stage: int, seg: Segment, t_abs0: float,
+           t0: float, h: float, x: float, v: float, th: float, e: float, z: np.ndarray,
+           xn: float, vn: float, thn: float, en: float, zn: np.ndarray, zw: np.ndarray,
+           arrest: bool) -> float:
+    """The Stribeck bound e at the end of a global slip's step from local time t0 by h, as the
+    exact path caps it (:func:`rigctl.model.kernel.nonlinear_slip.cap_on_step`): where the law
+    rises over the step its minimum is sought inside the step, on the Hermite interpolants built
+    with the accelerations of this path (plug-in terms included); in the step that ends the slip
+    (``arrest``) also on the geometric grid towards V = 0. Capping by the law at the step's end
+    only would miss that minimum and re-stick the elements carrying up to the law's whole rise
+    within the last step (docs/model.md, "Re-stick with velocity-dependent friction")."""
+    law0, law_e = step_laws(cp, seg, t0, h, v, vn)
+    if law_e <= law0:
+        return min(en, law_e)
+    xs0, vs, fn0, fn1 = seg
+    te = t0 + h
+    acc0, _, _ = _rhs(cp, terms, True, sign, stage, 0.0, 0.0, 0.0, t_abs0 + t0, xs0 + vs * t0,
+                      vs, fn0 + fn1 * t0, x, v, th, e, z, zw[0])
+    acc1, _, _ = _rhs(cp, terms, True, sign, stage, 0.0, 0.0, 0.0, t_abs0 + te, xs0 + vs * te,
+                      vs, fn0 + fn1 * te, xn, vn, thn, en, zn, zw[0])
+    return cap_on_step(cp, seg, t0, h, x, v, acc0, xn, vn, acc1, en, law_e, arrest)
+
+
+@njit(cache=True)
 def _store(fs: np.ndarray, z: np.ndarray, x: float, v: float, th: float, e: float,
            zn: np.ndarray) -> None:
     fs[S_X] = x
@@ -409,10 +434,10 @@ def general_step(cp: np.ndarray, weights: np.ndarray, terms: Any, fs: np.ndarray
             decay = math.exp(-hs / tau_s)
             fs[S_YF] = fd1 - slope_f * tau_s + (fs[S_YF] - fd0 + slope_f * tau_s) * decay
         if gslip:
+            en = _cap_e(cp, terms, sign, stage, seg, t_abs0, tloc, hs, x, v, th, e, z, xn, vn,
+                        thn, en, zn, zw, event)
             if event:
                 vn = 0.0
-            if cp[P_VS] > 0.0:
-                en = min(en, stribeck_law(cp, fn_e, abs(vn)))
             note_slip_force(fs, sign, drive_force(cp, xs_e, vs, xn, vn))
             note_slip_speed(fs, vn)
         _store(fs, z, xn, vn, thn if gslip else th + hs, en, zn)

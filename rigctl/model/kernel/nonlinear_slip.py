@@ -194,26 +194,59 @@ def cap_stribeck(
     h: float,
     arrest: bool,
 ) -> float:
-    """Stribeck part the elements can carry at the end of an RK step from s0 at t0 to s1 at t0 + h.
+    """Stribeck part the elements can carry at the end of an RK step from s0 at t0 to s1 at t0 + h
+    (:func:`cap_on_step` with the accelerations of :func:`slip_rhs` at both ends)."""
+    law0, law_e = step_laws(cp, seg, t0, h, s0.v, s1.v)
+    if law_e <= law0:
+        return min(s1.e, law_e)
+    acc0 = _acceleration(cp, sign, s0, seg, t0)
+    acc1 = _acceleration(cp, sign, s1, seg, t0 + h)
+    return cap_on_step(cp, seg, t0, h, s0.x, s0.v, acc0, s1.x, s1.v, acc1, s1.e, law_e, arrest)
+
+
+@njit(cache=True)
+def step_laws(cp: np.ndarray, seg: Segment, t0: float, h: float, v0: float,
+              v1: float) -> tuple[float, float]:
+    """The Stribeck law at the start and at the end of a step from local time t0 by h (both 0
+    when stribeck is off). Only where it rises over the step (the slip decelerating into the band
+    |V| < v_s) can its minimum lie inside the step (:func:`cap_on_step`); elsewhere the cap is
+    min(e, law at the end)."""
+    return (stribeck_law(cp, seg.fn0 + seg.fn1 * t0, abs(v0)),
+            stribeck_law(cp, seg.fn0 + seg.fn1 * (t0 + h), abs(v1)))
+
+
+@njit(cache=True)
+def cap_on_step(
+    cp: np.ndarray,
+    seg: Segment,
+    t0: float,
+    h: float,
+    x: float,
+    v: float,
+    acc0: float,
+    xn: float,
+    vn: float,
+    acc1: float,
+    e_n: float,
+    law_e: float,
+    arrest: bool,
+) -> float:
+    """Stribeck part the elements can carry at the end of a step from (x, v) at t0 to (xn, vn) at
+    t0 + h over which the law rises (:func:`step_laws`), with the accelerations acc0, acc1 at its
+    ends; e_n is the step's uncapped e, law_e the law at its end.
 
     e(t) = min over s <= t of [law(V(s)) + (Kt / Fn_eff) |X(t) - X(s)|]: the law's value at some
-    earlier instant plus the elastic loading since (s1.e is the s = start term, uncapped). Where the
-    law rises over the step (the slip decelerating into the Stribeck region) the minimum is sought
-    on the cubic Hermite interpolants of X and V over the step, on a uniform grid and, in the step
-    that ends the slip (``arrest``: V -> 0), on a geometric one towards its end, so the law's rise
-    within a velocity band narrower than the step is seen, however small v_s.
+    earlier instant plus the elastic loading since (e_n is the s = start term). As the law rises
+    over the step (the slip decelerating into the Stribeck region) the minimum is sought on the
+    cubic Hermite interpolants of X and V over the step, on a uniform grid and, in the step that
+    ends the slip (``arrest``: V -> 0), on a geometric one towards its end, so the law's rise
+    within a velocity band narrower than the step is seen, however small v_s. Both paths cap e
+    with it (the exact path's nonlinear slips, :mod:`rigctl.model.kernel.general`).
     """
     xs0, vs, fn0, fn1 = seg
-    x, v = s0.x, s0.v
-    xn, vn = s1.x, s1.v
     te = t0 + h
     fn_e = fn0 + fn1 * te
-    law_e = stribeck_law(cp, fn_e, abs(vn))
-    cap = min(s1.e, law_e)
-    if cp[P_VS] <= 0.0 or law_e <= stribeck_law(cp, fn0 + fn1 * t0, abs(v)):
-        return cap
-    acc0 = _acceleration(cp, sign, s0, seg, t0)
-    acc1 = _acceleration(cp, sign, s1, seg, te)
+    cap = min(e_n, law_e)
     fe = max(fn_e + cp[P_KAPPA] * cp[P_K0] * (xs0 + vs * te - xn), FN_CONTACT_MIN_N)
     kfe = element_stiffness(cp, 1, fn_e, 1) / fe
     n_uni = CAP_GRID_UNIFORM
