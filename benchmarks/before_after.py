@@ -1,8 +1,9 @@
 """The same benchmarks in another tree and in this one, run in turns, their headline figures compared.
 
 ``python -m benchmarks.before_after OTHER_TREE [--only engine acquisition live_view] [--rounds N]
-[--timeout S]`` runs each named ``benchmarks/bench_<name>.py`` with ``--quick --json`` in OTHER_TREE
-(its ``.venv`` python, the working directory there) and in this tree, each a fresh process, and
+[--timeout S] [--save FILE]`` runs each named ``benchmarks/bench_<name>.py`` with ``--quick --json``
+in OTHER_TREE (its ``.venv`` python, the working directory there) and in this tree, each a fresh
+process, and
 prints per headline figure the median of each tree, and the ratio new/old (this tree / OTHER_TREE)
 as the median of the round-by-round ratios with their smallest and largest.
 
