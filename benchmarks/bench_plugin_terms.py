@@ -12,7 +12,9 @@ Target (issue 37): plugin / built_in_general >= 0.5 in speed. CPU seconds, media
 ``--library`` adds what moving a library effect onto the term API would cost today: ``rate_state``
 and ``presliding`` on their own paths (exact stick, RK4 only in ``rate_state``'s slips) against the
 general path (forced there as above), on a slide-hold-slide of the workbench's kind (2e-5 m/s,
-holds of 1 and 3 s, 300 N).
+holds of 1 and 3 s, 300 N), and how far each library effect on the general path (forced there as
+above) lies from its own exact path: the largest |Ft| difference and slip start time difference,
+3 s at 1e-4 m/s and 300 N (``<effect>_general_vs_exact_max_ft_N``, ``..._max_slip_start_s``).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model
+from rigctl.model.effects import LIBRARY
 
 C_N_S_PER_M = 30.0
 
@@ -105,11 +108,29 @@ def measure_library_moves(repeats: int = 2) -> dict[str, float]:
     return out
 
 
+def library_agreement(duration_s: float = 3.0) -> dict[str, float]:
+    """Each library effect on the general path against its exact path: max |dFt|, max |dt_start|."""
+    drive = Drive.constant(300.0, 1e-4, duration_s)
+    out: dict[str, float] = {}
+    for name in sorted(LIBRARY):
+        exact = Simulator(build_model("paper", effects=[name])).run(drive)
+        general = Simulator(build_model("paper", effects=[name, NoForce])).run(drive)
+        out[f"{name}_general_vs_exact_max_ft_N"] = float(np.max(np.abs(general.ft_N - exact.ft_N)))
+        if len(general.events) == len(exact.events):
+            dt = [abs(a.t_start_s - b.t_start_s) for a, b in zip(general.events, exact.events,
+                                                                  strict=True)]
+            out[f"{name}_general_vs_exact_max_slip_start_s"] = max(dt, default=0.0)
+        else:
+            out[f"{name}_general_vs_exact_max_slip_start_s"] = float("inf")
+    return out
+
+
 def main() -> int:
     quick = "--quick" in sys.argv
     res = measure(1.0 if quick else 3.0, 2 if quick else 5)
     if "--library" in sys.argv:
         res.update(measure_library_moves())
+        res.update(library_agreement())
     if "--json" in sys.argv:
         print(json.dumps(res, indent=2))
     else:
