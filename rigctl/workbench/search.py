@@ -11,7 +11,9 @@ search".)
    an initial standard deviation, a quarter of where its optimum is expected.
 2. **Starts**: the model's current values, the same at the data's scale
    (:func:`~rigctl.workbench.fitting.data_scaled`) and the ratio guess
-   (:mod:`rigctl.workbench.guess`); from the best, every effect off and Sobol points
+   (:mod:`rigctl.workbench.guess`), the mass the drops' shape states where they resolve the slip
+   (:mod:`rigctl.workbench.drop_shape`); each given start and the best with every effect off (a
+   fit with an effect added is a point of its search); from the best, Sobol points
    (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an effect whose
    influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope there to
    follow), the damping following the mass (:class:`~rigctl.workbench.search_space.SearchSpace`).
@@ -61,6 +63,7 @@ from rigctl.records.dataset import Dataset
 from rigctl.records.rig_description import check_names
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
+from rigctl.workbench.drop_shape import drop_shape_mass
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.fitting import data_scaled
 from rigctl.workbench.guess import initial_guess
@@ -350,6 +353,9 @@ class _Search:
         guess = self.ratio_guess(choices[0])
         if guess is not None:
             self.rank_starts([guess])
+        drop = self.drop_shape_start(choices[0])
+        if drop is not None:
+            self.rank_starts([drop])
         if self.space.spread:
             x0 = self.x_best
             points = []
@@ -393,6 +399,27 @@ class _Search:
             if fp.name in values and math.isfinite(values[fp.name]):
                 x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
         return x
+
+    def drop_shape_start(self, choice: ModelChoice) -> FloatArray | None:
+        """The best start with the mass the drops' shape states (:mod:`rigctl.workbench.
+        drop_shape`: the slip is half a period of the mass on the drive spring, resolved where it
+        spans a few samples) and the drive damping moved with it at the same damping ratio
+        (:attr:`SearchSpace.follows`); None where the mass is no coordinate or the drops do not
+        resolve the slip. The data-scale start keeps the preset's slip frequency there, decades
+        from another rig's, and a spread start draws the mass and the damping ratio independently
+        over decades: neither is likely to land near both."""
+        names = [fp.name for fp in self.space.free]
+        if "m_kg" not in names:
+            return None
+        values = {**{p.name: p.value for p in choice.parameter_table()},
+                  **self.space.values(self.x_best)}
+        m = drop_shape_mass(self.pool.dataset, values["k0_N_per_m"])
+        if not math.isfinite(m):
+            return None
+        i = names.index("m_kg")
+        fp = self.space.free[i]
+        x = self.space.spread_point(self.x_best, {i: fp.to_u(min(max(m, fp.lower), fp.upper))})
+        return np.clip(x, self.space.lower, self.space.upper)
 
     def metric(self) -> None:
         """One Jacobian J at the best start: the local metric of the least-squares problem.
