@@ -194,8 +194,15 @@ class RunService:
             os.unlink(self.address.socket)
         # no authkey here: accept() would run the challenge itself, and one connection that never
         # answers it would block every other client; each is authenticated in its own thread
-        self._listener = Listener(self.address.socket, family="AF_UNIX")
-        os.chmod(self.address.socket, 0o600)
+        # bound and listening under a temporary name, then renamed into place: a client that sees
+        # the socket can connect at once (bind and listen are two calls, and a connect between
+        # them is refused)
+        staging = f"{self.address.socket}.{os.getpid()}.tmp"
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(staging)
+        self._listener = Listener(staging, family="AF_UNIX")
+        os.chmod(staging, 0o600)
+        os.replace(staging, self.address.socket)
         threading.Thread(target=self._accept_loop, args=(key,), name="runservice-accept",
                          daemon=True).start()
         self._log("info", f"run service {os.getpid()} on {self.backend} ({self.address.socket})")
