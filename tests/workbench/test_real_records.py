@@ -52,6 +52,7 @@ def test_spring_slider_fit_improves_on_the_preset_by_far(ens_comparison) -> None
     assert ens_comparison.fit.error < 0.6 * preset_error, (ens_comparison.fit.error, preset_error)
 
 
+@pytest.mark.slow
 def test_spring_slider_friction_levels_are_the_records_own(ens_runs, ens_comparison) -> None:  # type: ignore[no-untyped-def]
     # the record's own mean friction level (spring force over weight), not the preset's 0.15
     mu_mean = float(np.mean([np.mean(r.ft_N) / np.mean(r.fn_N) for r in ens_runs]))
@@ -61,6 +62,7 @@ def test_spring_slider_friction_levels_are_the_records_own(ens_runs, ens_compari
     assert 0.7 * mu_mean < mu_k < 1.3 * mu_mean, (mu_k, mu_mean)
 
 
+@pytest.mark.slow
 def test_spring_slider_model_enters_the_record_loaded(ens_comparison) -> None:  # type: ignore[no-untyped-def]
     """The records were cut from running slides: the model starts in its own cycle, not at 0 N."""
     for run, res in zip(ens_comparison.dataset.runs, ens_comparison.results, strict=True):
