@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model
+from benchmarks.bench_plugin_terms import NoForce
+from rigctl.model import Drive, Simulator, build_model
 
 FN_N = 300.0
 V_DRIVE_M_S = 1e-4
@@ -28,22 +29,6 @@ TOL_S = 5e-5
 """Slip start times within 5e-5 s: the exact path's stated convergence of its nonlinear slips
 (docs/model.md: RK4 at 1/64 of the period against 1/512, event times within 5e-5 s); the defect
 this guards against (e capped only at step ends on the general path) made slips 0.5 ms early."""
-
-
-def _nothing(p: np.ndarray, x: float, v: float, t: float, fn: float, z: np.ndarray) -> float:
-    return 0.0 * p[0]
-
-
-class _Null(Effect):
-    name = "null_force"
-    summary = "a plug-in force of zero (puts a model on the general path)"
-    signature = "none"
-    reveal_protocol = "any"
-    params = (ParamSpec("c", 1.0, 0.0, 1.0, "-", "active", off=0.0),)
-
-    @staticmethod
-    def force_term() -> Any:
-        return _nothing
 
 
 def _reference_starts(t0: float, x0: float, v0: float) -> list[float]:
@@ -131,7 +116,7 @@ def _stop_event(stops: Any) -> Any:
 def test_stribeck_slips_of_both_paths_start_when_an_independent_reference_says():
     drive = Drive.constant(FN_N, V_DRIVE_M_S, 2.0)
     exact = Simulator(build_model("paper", effects=["stribeck"])).run(drive)
-    general = Simulator(build_model("paper", effects=["stribeck", _Null])).run(drive)
+    general = Simulator(build_model("paper", effects=["stribeck", NoForce])).run(drive)
     t1 = exact.events[0].t_start_s
     stepper = Simulator(build_model("paper", effects=["stribeck"])).stepper(0.0, FN_N)
     t_before = t1 - 1e-7  # the reference's slip starts here, 1e-7 s early: 1e-11 m of travel
