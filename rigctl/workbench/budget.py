@@ -137,3 +137,15 @@ class Budget:
         """Raise :class:`SearchCancelledError` if the search was cancelled."""
         if self.cancel_event.is_set():
             raise SearchCancelledError("search cancelled")
+
+
+def said(say: Callable[[str], None]) -> Progress:
+    """A progress callback that says each report in words through ``say`` (a CLI's stderr, a
+    GUI's status line): the stage, the share of the budget spent and the time left."""
+
+    def progress(done: float, eta_s: float, message: str) -> None:
+        share = f"{done:.0%}" if math.isfinite(done) else "?"
+        left = f"about {eta_s:.0f} s left" if math.isfinite(eta_s) else "time left not known yet"
+        say(f"  {message} ({share} of the search budget, {left})")
+
+    return progress

@@ -62,7 +62,7 @@ from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset
 from rigctl.records.rig_description import check_names
 from rigctl.records.signals import FloatArray
-from rigctl.workbench.budget import Budget
+from rigctl.workbench.budget import Budget, Progress
 from rigctl.workbench.drop_shape import drop_shape_mass
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.fitting import data_scaled
@@ -130,12 +130,14 @@ def search_model(
     workers: int | None = None,
     with_uncertainty: bool = True,
     seed: int = 1,
+    progress: Progress | None = None,
 ) -> FitResult:
     """Identify ``choice`` on ``dataset`` by the one search (module docstring).
 
     ``budget``: evaluations and/or seconds (default: :func:`default_budget`, a cap: the search
     ends where it stops gaining); ``workers``: worker processes evaluating a batch of points
-    (default: the CPUs; 0 evaluates in this process). Raises
+    (default: the CPUs; 0 evaluates in this process); ``progress``: the budget's progress
+    callback where it has none (fraction done, seconds left, stage). Raises
     :class:`~rigctl.workbench.budget.SearchCancelledError` when the budget is cancelled."""
     t0, c0 = time.perf_counter(), time.process_time()
     rig = dataset.rig
@@ -148,6 +150,8 @@ def search_model(
     scaled = data_scaled(dataset, choice, identify_free)
     space = build_space(dataset, choice, scaled or choice, spreads_elements(choice))
     budget = budget or default_budget(space.dim)
+    if budget.progress is None:
+        budget.progress = progress
     n_workers = default_workers() if workers is None else workers
     with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
         search = _Search(space, pool, budget, seed, with_uncertainty)

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rigctl.workbench.budget import Budget, SearchCancelledError
+from rigctl.workbench.budget import Budget, SearchCancelledError, said
 
 
 class FakeClock:
@@ -80,3 +80,14 @@ def test_progress_gets_the_fraction_the_eta_and_the_message():
 def test_an_empty_budget_is_refused(kwargs):
     with pytest.raises(ValueError):
         Budget(**kwargs)
+
+
+def test_said_puts_a_report_in_words():
+    lines: list[str] = []
+    progress = said(lines.append)
+    progress(0.25, 30.4, "global search: generation 3")
+    progress(math.nan, math.nan, "starts")
+    assert lines == [
+        "  global search: generation 3 (25% of the search budget, about 30 s left)",
+        "  starts (? of the search budget, time left not known yet)",
+    ]

@@ -122,8 +122,9 @@ def test_a_cancel_ends_the_search_and_its_workers_within_2_s(short):
 
 def test_progress_reports_the_fraction_done_and_an_eta(short):
     seen: list[tuple[float, float, str]] = []
-    budget = Budget(max_evaluations=60, progress=lambda f, eta, msg: seen.append((f, eta, msg)))
-    search_model(short, ModelChoice("paper"), budget=budget, workers=2, with_uncertainty=False)
+    budget = Budget(max_evaluations=60)  # the search's own ``progress`` goes to its budget
+    search_model(short, ModelChoice("paper"), budget=budget, workers=2, with_uncertainty=False,
+                 progress=lambda f, eta, msg: seen.append((f, eta, msg)))
     etas = [eta for _, eta, _ in seen[:-1]]
     assert etas and all(math.isfinite(e) and e > 0.0 for e in etas)
     fractions = [f for f, _, _ in seen]
