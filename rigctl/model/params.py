@@ -38,7 +38,7 @@ class ParamSpec:
     """The value at which the owning effect has no influence (None for base parameters)."""
     scales_with: str = ""
     """Which quantity of a rig the default is typical for (SCALES), so that a model of another
-    rig's data starts it at that rig's scale (docs/workbench.md, "Any rig's data"); empty: the
+    rig's data starts it at that rig's scale (docs/identification.md, "Any rig's data"); empty: the
     default holds for any rig (a ratio, an exponent, a count)."""
 
     def check(self, value: float, owner: str = "") -> float:
@@ -103,7 +103,7 @@ def check_values(
 # --- base parameters (classic and paper) ---------------------------------------------------------
 BASE_PARAMS: tuple[ParamSpec, ...] = (
     # bounds span rigs from an AFM cantilever to a rock biax: the model of another rig's data takes
-    # the data's own scale (docs/workbench.md, "Any rig's data")
+    # the data's own scale (docs/identification.md, "Any rig's data")
     ParamSpec("m_kg", 0.048, 1e-9, 1e5, "kg", "mass M of the driven specimen (paper Sec. 5.3)",
               identify=False),
     ParamSpec("c0_N_s_per_m", 4.0, 0.0, 1e8, "N s/m", "drive damping C0 (paper Sec. 5.3)",

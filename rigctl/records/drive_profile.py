@@ -1,8 +1,8 @@
 """The drive a measured run applied: stage position and normal force as a few straight segments.
 
-The model is simulated on each run's measured stage position and normal force (docs/workbench.md,
-"Drive"). Feeding every noisy, quantised sample as a knot would make the model integrate sensor
-noise and run slowly, so both histories are simplified to piecewise-linear curves:
+The model is simulated on each run's measured stage position and normal force (docs/reading-records.md,
+"Reading a record", "Drive"). Feeding every noisy, quantised sample as a knot would make the model
+integrate sensor noise and run slowly, so both histories are simplified to piecewise-linear curves:
 
 1. knots by Douglas-Peucker splitting (Douglas & Peucker, Cartographica 10, 1973) with a tolerance
    of a few noise RMS / quantisation steps (stage) or of 3 % of the load (normal force; a commanded

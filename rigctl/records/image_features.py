@@ -5,7 +5,7 @@ direction, and the intensity proportion of local contact image is calculated as 
 stress distribution P(k, t)"; Sec. 5.2: P(i) is P_linear in the initial stage (the back end carries
 less) and P_uniform in the stable stage (``rigctl.model.effects.stress_evolution``). When a run
 file has camera frames, two numbers per run compare the model's P(i, t) with the images (docs/
-workbench.md, "Contact images"):
+reading-records.md, "Contact images"):
 
 ``p_tilt_initial`` - **the initial stage's back-end unloading**, as a tilt. A part's light is
 a texture-dependent, nonlinear function of its pressure (a few asperities per part: on the

@@ -1,6 +1,7 @@
 """The model workbench: compare the model with measured runs, see where it fails, find what is missing.
 
-The pipeline, one module per step (docs/workbench.md tells the why of each):
+The pipeline, one module per step (docs/workbench.md, with the detail in docs/reading-records.md and
+docs/identification.md, tells the why of each):
 
 read
     :mod:`rigctl.records` reads the runs (checked, the drive simplified, the slips found and

@@ -84,8 +84,8 @@ def _comparison_sections(cmp: Comparison, folder: Path, *, prefix: str = "",
 
 
 def _pattern_figure(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
-    """The residual's periods (docs/workbench.md section 4), drawn against where they repeat: only
-    when the map found one."""
+    """The residual's periods (docs/identification.md, "Structure that is not a straight line"), drawn
+    against where they repeat: only when the map found one."""
     if not cmp.rmap.patterns:
         return []
     png = plots.periodic_patterns(cmp.rmap.patterns, folder / f"{prefix}periodic.png")
@@ -95,8 +95,8 @@ def _pattern_figure(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
 
 
 def _image_section(cmp: Comparison, folder: Path, prefix: str) -> list[str]:
-    """The model's stress distribution against the contact images (docs/workbench.md, "Contact
-    images"): per run the image features and the per-part ratios, or why a run has none."""
+    """The model's stress distribution against the contact images (docs/reading-records.md,
+    "Contact images"): per run the image features and the per-part ratios, or why a run has none."""
     rows = cmp.image_rows()
     with_frames = [r for r in rows if "absent" not in r]
     out = ["<h3>Stress distribution against the contact images</h3>"]

@@ -1,7 +1,7 @@
 """Identification as one search: data-scale starts, CMA-ES, a least-squares polish, one budget.
 
 (New; not yet used by ``diagnose``, which still calls :func:`rigctl.workbench.fitting.
-identify_model` and :func:`~rigctl.workbench.fitting.fit_candidate`. docs/workbench.md, "The
+identify_model` and :func:`~rigctl.workbench.fitting.fit_candidate`. docs/identification.md, "The
 search".)
 
 1. **Space** (:mod:`rigctl.workbench.search_space`): every ``identify`` parameter of the base and

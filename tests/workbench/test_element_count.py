@@ -1,5 +1,5 @@
 """Once an effect spreads the elements' thresholds, the model is refitted at other element
-counts and the best kept (workbench.md, "Element count")."""
+counts and the best kept (identification.md, "Element count")."""
 
 from __future__ import annotations
 

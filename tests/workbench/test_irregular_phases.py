@@ -3,7 +3,7 @@
 At 300 um/s and 300 N the simulated rig's cycles (110 ms) are about as long as its ringing after a
 slip (90 ms): slip sizes wander between branches, and 0.1 % in mu_k reshuffles the sequence. Slip
 by slip, such a phase made the generating parameters score 4.4 and mu_k 0.1 % off 28-35 (see
-docs/workbench.md, "The error E").
+docs/reading-records.md, "The error E").
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """K(i) = dFt/d(delta) in stick is read from slopes in time, so a post-slip ringing that lasts
-into the loading ramp does not bias it (workbench.md, "Starting values from the data")."""
+into the loading ramp does not bias it (identification.md, "Starting values from the data")."""
 
 from __future__ import annotations
 

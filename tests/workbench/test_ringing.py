@@ -1,5 +1,5 @@
 """The post-slip ringing gives a model of another rig its mass and damping, where the sampling
-resolves it, and never an alias (workbench.md, "Starting values from the data")."""
+resolves it, and never an alias (identification.md, "Starting values from the data")."""
 
 from __future__ import annotations
 

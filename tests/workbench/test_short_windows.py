@@ -4,7 +4,7 @@ The campaign's scatter of loading rates and stick stiffnesses is set by full sti
 samples, 0.5 %); the first stick after a step down to a slow velocity may last 80 ms, where the
 white noise alone makes its rate uncertain by tens of per cent and attenuates its fitted
 compliance (Ft is noisy too). Measured in the campaign's scatter, that one slip made the
-generating model score 49 on a velocity-step campaign (docs/workbench.md, "Short windows").
+generating model score 49 on a velocity-step campaign (docs/reading-records.md, "Short windows").
 """
 
 from __future__ import annotations

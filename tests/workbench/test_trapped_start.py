@@ -1,5 +1,6 @@
 """Of the two starts on another rig's data, a fit whose model misses most slips is never kept over
-one that makes them, whatever their errors (the no-slip trap, workbench.md section 3).
+one that makes them, whatever their errors (the no-slip trap, identification.md, "Starting values from
+the data").
 
 The rig is one of the held-out benchmark's (an 11 N contact, a drive 6 times stiffer than this
 rig's, an interface 130 times stiffer, friction falling with the load): from this rig's preset the
