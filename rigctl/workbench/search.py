@@ -589,6 +589,7 @@ class _Search:
                 raise _ConvergedError("the budget would not pay another Jacobian")
             last.append(cost)
             current[:] = z
+            self.budget.report(f"local polish: Jacobian {len(last)} at |r|^2 {cost:.4g}")
             return self.jacobian(point(z), r)[:, cols] * h
 
         self.budget.report("local polish")

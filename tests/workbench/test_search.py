@@ -130,6 +130,9 @@ def test_progress_reports_the_fraction_done_and_an_eta(short):
     fractions = [f for f, _, _ in seen]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     assert seen[-1][1] == 0.0 and seen[-1][2] == "done"
+    stages = [msg.split(":")[0] for _, _, msg in seen]
+    assert stages.index("starts") < stages.index("local polish")  # each stage says itself
+    assert any(msg.startswith("local polish: Jacobian 1 at") for _, _, msg in seen)
 
 
 def test_the_search_ends_where_it_stops_gaining_inside_its_cap(short):
