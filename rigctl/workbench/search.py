@@ -450,6 +450,7 @@ class _Search:
             return
         used = self.budget.used
         x0, r0 = at
+        self.budget.report(f"metric: a Jacobian at the best start, |r|^2 {self.cost_best:.4g}")
         J = self.jacobian(x0, r0)
         jtj = J.T @ J
         if np.all(np.isfinite(jtj)):
