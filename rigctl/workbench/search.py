@@ -148,7 +148,8 @@ def search_model(
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
     identify_free = free_params(choice, rig=rig)
     scaled = data_scaled(dataset, choice, identify_free)
-    space = build_space(dataset, choice, scaled or choice, spreads_elements(choice))
+    space = build_space(dataset, choice, scaled or choice,
+                        spreads_elements(choice)).switching_off(added_effects(choice))
     budget = budget or default_budget(space.dim)
     if budget.progress is None:
         budget.progress = progress
@@ -162,6 +163,14 @@ def search_model(
         result = search.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
                    cpu_s=time.process_time() - c0)
+
+
+def added_effects(choice: ModelChoice) -> list[str]:
+    """The effects of ``choice`` being added: those it states no value of (an effect added to a
+    model, :meth:`ModelChoice.with_effect`, has none; a fitted one has all its fitted values).
+    The start with these off is the model they are added to."""
+    stated = {name.split(".", 1)[0] for name in choice.values if "." in name}
+    return [e for e in choice.effects if e not in stated]
 
 
 def default_budget(dim: int) -> Budget:
@@ -346,9 +355,10 @@ class _Search:
     # -- stages -------------------------------------------------------------------------------
 
     def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; each of them and the best with every
-        effect off (the model's values with its effects off are the fit they were added to: a
-        search from there never ends worse than that fit); from the best, Sobol points over the
+        """The model's values and its data-scale start; each of them and the best with the
+        effects being added off (:func:`added_effects`: the model's values with them off are the
+        fit they were added to, its own fitted effects kept: a search from there never ends worse
+        than that fit); from the best, Sobol points over the
         plausible ranges of the coordinates whose start is a guess (as many as a population,
         rounded up to a power of two to keep the Sobol sequence balanced)."""
         used = self.budget.used

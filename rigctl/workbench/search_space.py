@@ -27,7 +27,7 @@ reason.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -103,7 +103,7 @@ class SearchSpace:
     count: bool
     off: dict[int, float] = field(default_factory=dict)
     """Effect coordinates and their off value (internal units, within the bounds): the start with
-    every effect switched off."""
+    the effects being added switched off (:meth:`switching_off`; all of them by default)."""
     follows: dict[int, tuple[int, float]] = field(default_factory=dict)
     """Coordinate i moves with coordinate j, slope a, where it is spread (``{i: (j, a)}``): its
     own spread is about that line. The drive damping C0 = 2 zeta sqrt(K0 M) follows the mass
@@ -129,9 +129,16 @@ class SearchSpace:
                 x[i] += a * (values[j] - x0[j])
         return x
 
+    def switching_off(self, effects: Collection[str]) -> SearchSpace:
+        """This space with only ``effects``' coordinates in :attr:`off`: a model that already has
+        fitted effects and gets more keeps its own at their values in the start with the new ones
+        off, which is then that model itself."""
+        keep = {i: u for i, u in self.off.items() if self.free[i].name.split(".", 1)[0] in effects}
+        return replace(self, off=keep)
+
     def off_point(self, x: FloatArray) -> FloatArray:
-        """``x`` with every effect at its off value (:attr:`off`): from a start that is a fitted
-        model with effects added, exactly that fit."""
+        """``x`` with the effects of :attr:`off` at their off values: from a start that is a
+        fitted model with effects added, exactly that fit."""
         out = np.array(x, dtype=np.float64)
         for i, u in self.off.items():
             out[i] = u

@@ -14,7 +14,7 @@ from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
-from rigctl.workbench.search import search_model
+from rigctl.workbench.search import added_effects, search_model
 from rigctl.workbench.search_space import build_space
 from rigctl.workbench.selection import with_effects
 from tests.workbench.hidden import MAGNITUDE, TEST_BASE, scaled_values
@@ -61,3 +61,34 @@ def test_a_search_from_a_fit_with_an_effect_added_never_ends_worse_than_that_fit
     res = search_model(dataset, with_effects(base.choice, ("presliding",)),
                        budget=Budget(max_evaluations=60), workers=0, with_uncertainty=False)
     assert res.error <= base.error * (1.0 + 1e-9)
+
+
+def test_only_the_effects_being_added_are_switched_off_in_the_start_from_the_fit(dataset):
+    base = ModelChoice("paper").with_values({**TEST_BASE, "n_elements": 7})
+    fitted = base.with_effect("presliding").with_values({"presliding.spread": 0.3})
+    assert added_effects(fitted) == []
+    assert added_effects(with_effects(fitted, ("wear",))) == ["wear"]
+    choice = with_effects(fitted, ("wear",))
+    space = build_space(dataset, choice, choice, False).switching_off(added_effects(choice))
+    off = space.values(space.off_point(space.vector(choice)))
+    table = {p.name: p for p in choice.parameter_table()}
+    for name, value in off.items():
+        if name.startswith("presliding."):  # the model's own fitted effect keeps its value
+            assert value == pytest.approx(table[name].value, rel=1e-12), name
+    assert off["presliding.spread"] == pytest.approx(0.3)
+    assert space.off and {space.free[i].name.split(".")[0] for i in space.off} == {"wear"}
+
+
+@pytest.mark.slow  # three short searches
+def test_a_search_from_a_model_with_fitted_effects_never_ends_worse_than_that_model(dataset):
+    short = Budget(max_evaluations=60)
+    base = search_model(dataset, ModelChoice("paper"), budget=short, workers=0,
+                        with_uncertainty=False)
+    # the hidden effect fitted first, then presliding added: the start with every effect off
+    # would drop the fitted load dependence too, and presliding at its default is far off
+    first = search_model(dataset, with_effects(base.choice, (HIDDEN,)),
+                         budget=Budget(max_evaluations=60), workers=0, with_uncertainty=False)
+    assert first.error < 0.8 * base.error
+    second = search_model(dataset, with_effects(first.choice, ("presliding",)),
+                          budget=Budget(max_evaluations=60), workers=0, with_uncertainty=False)
+    assert second.error <= first.error * (1.0 + 1e-9)
