@@ -44,6 +44,8 @@ from rigctl.workbench.ranking import CandidateScore, score_candidate
 
 FitFn = Callable[[Dataset, ModelChoice], FitResult]
 """Identify one model on a dataset (its current values are the search's start)."""
+ErrorFn = Callable[[Dataset, ModelChoice], float]
+"""The error of one model on a dataset at its values (one evaluation, no fit)."""
 Say = Callable[[str], None]
 
 SCREEN_KEEP = 3
@@ -80,7 +82,7 @@ class Step:
     """One change of the model: effects added (forward) or removed (backward)."""
 
     kind: str
-    """``add`` or ``remove``."""
+    """``add``, ``remove``, or ``refit`` (the model itself fitted better, no effect changed)."""
     effects: tuple[str, ...]
     error_before: float
     error_after: float
@@ -186,19 +188,62 @@ def backward_elimination(
         model = rest
 
 
+def unfinished_model(
+    dataset: Dataset, model: FitResult, trials: Sequence[Trial], *, error_of: ErrorFn,
+) -> ModelChoice | None:
+    """The model at a trial's fitted values with the trial's effects off, where that is
+    significantly better than ``model`` (None otherwise; the best such point).
+
+    A trial's fit moves the model's own parameters as well as the effects'; where the same model
+    without the effects is significantly better at those values, the gain was the model's
+    unfinished fit, not the effects, and must not be credited to them: the model is refitted from
+    there and the step repeated. The rule is the one every candidate is judged by
+    (:func:`~rigctl.workbench.ranking.score_candidate`, here with no extra parameter), so each
+    refit lowers the error significantly and the repetitions end."""
+    best: tuple[float, ModelChoice] | None = None
+    for t in trials:
+        if not t.fit.error < model.error:
+            continue
+        choice = t.fit.choice
+        for effect in t.effects:
+            choice = without_effect(choice, effect)
+        e = error_of(dataset, choice)
+        if math.isfinite(e) and (best is None or e < best[0]):
+            best = (e, choice)
+    if best is None:
+        return None
+    sc = score_candidate("refit", model.error, best[0], dataset.n_events, 0)
+    return best[1] if sc.significant else None
+
+
 def select_effects(
     dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
-    max_steps: int = MAX_STEPS, say: Say = lambda _m: None,
+    max_steps: int = MAX_STEPS, say: Say = lambda _m: None, error_of: ErrorFn | None = None,
 ) -> Selection:
     """Forward selection from ``base`` over ``pool``, then backward elimination (module docstring).
-    Effects ``base`` already has are the user's and are never removed."""
+    Effects ``base`` already has are the user's and are never removed. With ``error_of``, a step
+    whose trials show the model's own fit unfinished (:func:`unfinished_model`) refits the model
+    from there (a ``refit`` step) and is repeated."""
     sel = Selection(base, base)
     model, pool = base, list(pool)
-    for _ in range(max_steps):
+    steps = 0
+    while steps < max_steps:
         if not pool:
             break
         chosen, trials = forward_step(dataset, model, pool, fit=fit, screen=screen, say=say)
         sel.rounds.append(trials)
+        again = None if error_of is None else unfinished_model(dataset, model, trials,
+                                                                error_of=error_of)
+        if again is not None:
+            refit = fit(dataset, again)
+            if refit.error < model.error:
+                say(f"{model.choice.label()} fits better from a trial's values without its "
+                    f"effects: {model.error:.3g} -> {refit.error:.3g}; the step again")
+                sc = score_candidate("refit", model.error, refit.error, dataset.n_events, 0)
+                sel.steps.append(Step("refit", (), model.error, refit.error, sc.delta_bic, refit))
+                model = refit
+                continue
+        steps += 1
         if chosen is None:
             break
         say(f"adding {chosen.name}: {model.error:.3g} -> {chosen.fit.error:.3g}")

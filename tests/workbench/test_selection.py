@@ -134,3 +134,60 @@ def test_with_and_without_effects_round_trip(effects):
     choice = sel.with_effects(ModelChoice("paper"), effects).with_values({"a.p": 1.0, "mu_s": 0.2})
     back = sel.without_effect(choice, "a")
     assert "a" not in back.effects and "a.p" not in back.values and back.values["mu_s"] == 0.2
+
+
+class Unfinished(Table):
+    """A model whose own fit is unfinished: every trial's fit moves the base parameters to where
+    the base without any effect scores ``finished`` (marked by a value ``at_trial``)."""
+
+    def __init__(self, errors: Mapping[frozenset[str], float], finished: float) -> None:
+        super().__init__(errors)
+        self.finished = finished
+        self.evaluated: list[ModelChoice] = []
+
+    def _result(self, choice: ModelChoice, error: float) -> FitResult:
+        res = super()._result(choice, error)
+        if choice.effects:  # a trial: its fit reached the better base values
+            res = FitResult(res.choice.with_values({"at_trial": 1.0}), res.error, {}, res.free)
+        return res
+
+    def fit(self, ds: Any, choice: ModelChoice) -> FitResult:
+        if not choice.effects and "at_trial" in choice.values:  # the base refitted from there
+            self.fitted.append(frozenset())
+            return FitResult(choice, self.finished, {}, ("mu_s", "mu_k"))
+        return super().fit(ds, choice)
+
+    def error_of(self, _ds: Any, choice: ModelChoice) -> float:
+        self.evaluated.append(choice)
+        if "at_trial" in choice.values and not choice.effects:
+            return self.finished
+        return self.errors[frozenset(choice.effects)]
+
+
+def test_a_gain_the_model_reaches_without_the_effect_is_not_credited_to_the_effect():
+    # every effect seems to take 10 -> 6, but the base alone at the trials' values scores 6
+    t = Unfinished({S(): 10.0, S("a"): 6.0, S("b"): 6.2, S("a", "b"): 6.0}, finished=6.0)
+    base = t.fit(DATASET, ModelChoice("paper"))
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen,
+                             error_of=t.error_of)
+    assert [s.kind for s in out.steps] == ["refit"]
+    assert out.steps[0].error_before == 10.0 and out.steps[0].error_after == 6.0
+    assert out.final.choice.effects == () and out.final.error == 6.0
+    # every evaluated point had the trial's effects off
+    assert t.evaluated and all(c.effects == () for c in t.evaluated)
+
+
+def test_without_error_of_the_unfinished_gain_is_credited_as_before():
+    t = Unfinished({S(): 10.0, S("a"): 6.0, S("b"): 6.2, S("a", "b"): 6.0}, finished=6.0)
+    base = t.fit(DATASET, ModelChoice("paper"))
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen)
+    assert out.steps[0].kind == "add"
+
+
+def test_a_trial_whose_gain_is_its_own_is_added_after_the_check():
+    # the base at the trials' values is no better than the model: the effect keeps its gain
+    t = Unfinished({S(): 10.0, S("a"): 4.0, S("b"): 8.0, S("a", "b"): 3.95}, finished=9.9)
+    base = t.fit(DATASET, ModelChoice("paper"))
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen,
+                             error_of=t.error_of)
+    assert [(s.kind, s.effects) for s in out.steps] == [("add", ("a",))]
