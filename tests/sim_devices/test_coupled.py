@@ -47,13 +47,21 @@ def test_modbus_drive_can_forces_and_camera_follow_one_stick_slip_rig() -> None:
         k_move = sim.rig.k
         dev.tangential_stage.enable()
         dev.tangential_stage.move_relative(0.4e-3, 10e-6)  # 10 um/s for 40 s (2 s at 20x)
+        t_moved_s = sim.rig.t_s  # the move runs from this rig time at the latest
         ft_parts: list[np.ndarray] = []
         fn_parts: list[np.ndarray] = []
-        while sum(len(p) for p in ft_parts) < 22 * 1024:  # 22 s of the rig's time
+        t_end_s = None
+        while True:  # 22 s of the rig's time after the move (counted from the DAQ's start, a
+            # wall-time delay of the command on a loaded machine is up to 20 times that in rig time)
             block = dev.daq.read_block(4096, 1.0)
             assert len(block), "the DAQ stopped streaming"
             ft_parts.append(m.ft_N(block))
             fn_parts.append(m.fn_N(block))
+            start_s = sim.rig.daq_stream_start_s
+            assert start_s is not None
+            t_end_s = t_moved_s - start_s + 22.0 if t_end_s is None else t_end_s
+            if float(block.t_s[-1]) >= t_end_s:
+                break
         dev.daq.stop()
         dev.tangential_stage.stop()
         truth = sim.rig.samples(k_move, sim.rig.k + 1)
