@@ -128,6 +128,9 @@ _WORKER: dict[str, Any] = {}
 def _init_worker(dataset_pickle: bytes, choice: ModelChoice, free: tuple[FreeParam, ...],
                  parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    # a forked worker inherits the parent's SIGTERM handler (parallel.raise_terminated, where a
+    # diagnose installed it): the pool's terminate must end the worker, not raise in it
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent_pid)
     _WORKER["blas"] = threadpool_limits(limits=1)
     _WORKER["evaluator"] = _Evaluator(pickle.loads(dataset_pickle), choice, free)
