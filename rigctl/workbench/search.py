@@ -17,7 +17,7 @@ search".)
    (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an effect whose
    influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope there to
    follow), the damping following the mass (:class:`~rigctl.workbench.search_space.SearchSpace`).
-3. **Metric** (:meth:`_Search.metric`): one Jacobian J at the best start, the Gauss-Newton
+3. **Metric** (:meth:`SearchState.metric`): one Jacobian J at the best start, the Gauss-Newton
    metric of the least-squares problem; the starts ranked by the cost their damped Gauss-Newton
    step would reach under J, the best steps evaluated; CMA-ES's initial covariance from J^T J.
 4. **Global stage: CMA-ES** (``cma``, Hansen & Ostermeier 2001; Hansen, *The CMA Evolution
@@ -34,7 +34,7 @@ search".)
    while another point exists. It ends when its best cost stops falling by more than the
    scatter (TOL_COST).
 5. **Polish**: bounded least squares (scipy's trust-region reflective) from the best point, in
-   coordinates measured in each column's resolvable finite-difference step (:meth:`_Search.
+   coordinates measured in each column's resolvable finite-difference step (:meth:`SearchState.
    polish`: the trust region then spans about one such step per coordinate, whatever the
    parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
    than the scatter or a trial step is shorter than the residual resolves; then the answer's
@@ -155,7 +155,7 @@ def search_model(
         budget.progress = progress
     n_workers = default_workers() if workers is None else workers
     with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
-        search = _Search(space, pool, budget, seed, with_uncertainty)
+        search = SearchState(space, pool, budget, seed, with_uncertainty)
         search.starts([choice, *([scaled] if scaled is not None else [])])
         search.metric()
         search.cma()
@@ -209,7 +209,7 @@ class _ConvergedError(Exception):
     (the message says which)."""
 
 
-class _Search:
+class SearchState:
     """The state of one search: the best point seen, how each evaluated point ranks, and what a
     Jacobian costs here."""
 

@@ -9,8 +9,10 @@ joint signature unexplained (each alone is not significant) while together they 
 
 One step:
 
-1. **Screen** every single effect with a short fit (``screen``: the same search on a small
-   budget). The short fit's error ranks the candidates; the best ``SCREEN_KEEP`` singles go on.
+1. **Screen** every single effect (``screen``: the score screen of :mod:`rigctl.workbench.
+   screening`, about one Jacobian per set, or short fits, :func:`by_short_fits`: the same search on
+   a small budget). The screened error ranks the candidates; the best ``SCREEN_KEEP`` singles go
+   on.
 2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
    ``SCREEN_KEEP`` pairs go on.
 3. **Fit** the kept sets fully (``fit``) and score each against the model
@@ -26,8 +28,9 @@ whose removal is not significantly worse by the same rule goes, the weakest firs
 effect left earns its place. Forward and backward use one rule, so a model the procedure returns
 is one from which no single addition or removal is significant.
 
-Everything that fits is injected (``fit``, ``screen``: ``(dataset, choice) -> FitResult``), so the
-procedure is independent of how one model is identified (:mod:`rigctl.workbench.search`).
+Everything that fits or screens is injected (``fit``: ``(dataset, choice) -> FitResult``;
+``screen``: ``(dataset, model, sets) -> [(set, error)]``), so the procedure is independent of how one
+model is identified (:mod:`rigctl.workbench.search`).
 """
 
 from __future__ import annotations
@@ -44,15 +47,19 @@ from rigctl.workbench.ranking import CandidateScore, score_candidate
 
 FitFn = Callable[[Dataset, ModelChoice], FitResult]
 """Identify one model on a dataset (its current values are the search's start)."""
+ScreenFn = Callable[[Dataset, FitResult, Sequence[tuple[str, ...]]],
+                    list[tuple[tuple[str, ...], float]]]
+"""Screen effect sets added to a fitted model: each set and its screened error, best first."""
 ErrorFn = Callable[[Dataset, ModelChoice], float]
 """The error of one model on a dataset at its values (one evaluation, no fit)."""
 Say = Callable[[str], None]
 
 SCREEN_KEEP = 3
-"""Singles (and pairs) a screen passes to the full fit. A short fit ranks candidates with the noise
-of an unfinished search; the candidate that a full fit would rank first is among the first three of
-the screen unless the screen's errors differ by less than their own spread, which keeping three
-allows for at a third of the cost of fitting everything."""
+"""Singles (and pairs) a screen passes to the full fit. A screen ranks candidates with the noise
+of an unfinished search (a short fit) or of a linear re-fit (the score screen); the candidate that a
+full fit would rank first is among the first three of the screen unless the screen's errors differ
+by less than their own spread, which keeping three allows for at a third of the cost of fitting
+everything."""
 PAIR_POOL = 4
 """Pairs are formed from the best this many screened singles (six pairs): an effect of an
 interacting pair still lowers the error alone, if less than significantly, and so ranks near the
@@ -70,7 +77,7 @@ class Trial:
     fit: FitResult
     score: CandidateScore
     screened_error: float
-    """The short fit's error (the screen's ranking)."""
+    """The screened error (the screen's ranking)."""
 
     @property
     def name(self) -> str:
@@ -139,17 +146,23 @@ def screen_sets(
     return sorted((short(s) for s in sets), key=lambda s: s[1])
 
 
+def by_short_fits(short_fit: FitFn, say: Say = lambda _m: None) -> ScreenFn:
+    """A screen that fits each set with ``short_fit`` (:func:`screen_sets`)."""
+    return lambda dataset, model, sets: screen_sets(dataset, model, sets, screen=short_fit,
+                                                    say=say)
+
+
 def forward_step(
-    dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
+    dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
     say: Say,
 ) -> tuple[Trial | None, list[Trial]]:
     """One forward step from ``model``: the set to add (None: nothing significant) and the trials.
     """
     n = dataset.n_events
-    singles = screen_sets(dataset, model, [(c,) for c in pool], screen=screen, say=say)
+    singles = screen(dataset, model, [(c,) for c in pool])
     pair_sets = [tuple(sorted((a[0][0], b[0][0])))
                  for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
-    pairs = screen_sets(dataset, model, pair_sets, screen=screen, say=say)
+    pairs = screen(dataset, model, pair_sets)
     trials: list[Trial] = []
     for effects, e_screen in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
         res = fit(dataset, with_effects(model.choice, effects))
@@ -217,7 +230,7 @@ def unfinished_model(
 
 
 def select_effects(
-    dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: FitFn,
+    dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
     max_steps: int = MAX_STEPS, say: Say = lambda _m: None, error_of: ErrorFn | None = None,
 ) -> Selection:
     """Forward selection from ``base`` over ``pool``, then backward elimination (module docstring).

@@ -65,7 +65,7 @@ def _select(table: Table, base_effects: tuple[str, ...] = ()) -> sel.Selection:
     base = table.fit(DATASET, ModelChoice("paper", base_effects))
     table.fitted.clear()
     return sel.select_effects(DATASET, base, [p for p in POOL if p not in base_effects],
-                              fit=table.fit, screen=table.screen)
+                              fit=table.fit, screen=sel.by_short_fits(table.screen))
 
 
 def test_the_best_significant_single_is_added_and_nothing_after_it():
@@ -168,7 +168,7 @@ def test_a_gain_the_model_reaches_without_the_effect_is_not_credited_to_the_effe
     # every effect seems to take 10 -> 6, but the base alone at the trials' values scores 6
     t = Unfinished({S(): 10.0, S("a"): 6.0, S("b"): 6.2, S("a", "b"): 6.0}, finished=6.0)
     base = t.fit(DATASET, ModelChoice("paper"))
-    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen,
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen),
                              error_of=t.error_of)
     assert [s.kind for s in out.steps] == ["refit"]
     assert out.steps[0].error_before == 10.0 and out.steps[0].error_after == 6.0
@@ -180,7 +180,7 @@ def test_a_gain_the_model_reaches_without_the_effect_is_not_credited_to_the_effe
 def test_without_error_of_the_unfinished_gain_is_credited_as_before():
     t = Unfinished({S(): 10.0, S("a"): 6.0, S("b"): 6.2, S("a", "b"): 6.0}, finished=6.0)
     base = t.fit(DATASET, ModelChoice("paper"))
-    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen)
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen))
     assert out.steps[0].kind == "add"
 
 
@@ -188,6 +188,6 @@ def test_a_trial_whose_gain_is_its_own_is_added_after_the_check():
     # the base at the trials' values is no better than the model: the effect keeps its gain
     t = Unfinished({S(): 10.0, S("a"): 4.0, S("b"): 8.0, S("a", "b"): 3.95}, finished=9.9)
     base = t.fit(DATASET, ModelChoice("paper"))
-    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=t.screen,
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen),
                              error_of=t.error_of)
     assert [(s.kind, s.effects) for s in out.steps] == [("add", ("a",))]

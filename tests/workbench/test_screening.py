@@ -1,0 +1,81 @@
+"""The score screen (rigctl/workbench/screening.py): the linear profile over the base, and on small
+generated campaigns with one hidden library effect, the generating effect among the sets the screen
+keeps, at a fraction of a short fit's evaluations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rigctl.model import build_model
+from rigctl.records.dataset import Dataset, prepare_dataset
+from rigctl.workbench import selection as sel
+from rigctl.workbench.budget import Budget
+from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.screening import base_basis, profiled_cost, score_screen
+from rigctl.workbench.search import search_model
+from tests.workbench.hidden import DECOYS, MAGNITUDE, TEST_BASE, scaled_values
+
+SHORT_FIT_EVALUATIONS = 60
+"""The short fit's budget (tests/workbench/test_selection_screen.py): what the score screen saves
+against."""
+
+
+def test_the_profile_removes_what_the_base_explains_and_keeps_the_rest():
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(40, 3))
+    J = np.column_stack([J, J[:, 0] + J[:, 1], np.zeros(40)])  # a dependent and a dead column
+    Q = base_basis(J)
+    assert Q.shape == (40, 3)
+    assert np.allclose(Q.T @ Q, np.eye(3))
+    inside = J @ np.array([1.0, -2.0, 0.5, 0.3, 7.0])
+    assert profiled_cost(inside, Q) == pytest.approx(0.0, abs=1e-18 * float(inside @ inside) + 1e-20)
+    outside = rng.normal(size=40)
+    outside -= Q @ (Q.T @ outside)
+    assert profiled_cost(outside + inside, Q) == pytest.approx(float(outside @ outside))
+    assert base_basis(np.zeros((5, 2))).shape == (5, 0)
+
+
+def _case(hidden: str) -> tuple[Dataset, FitResult]:
+    model = build_model("paper", effects=[hidden], params=TEST_BASE,
+                        effect_params={hidden: scaled_values(hidden, MAGNITUDE)})
+    runs = simulate_campaign(model, PROTOCOL_FOR_EFFECT[hidden], seed=3, velocity_m_s=2e-5,
+                             duration_scale=0.3)
+    dataset = prepare_dataset(runs)
+    base = search_model(dataset, ModelChoice("paper"),
+                        budget=Budget(max_evaluations=SHORT_FIT_EVALUATIONS), workers=1,
+                        with_uncertainty=False)
+    return dataset, base
+
+
+def test_the_hidden_effect_screens_first_at_a_fraction_of_a_short_fit():
+    hidden = "load_dependent_friction"
+    dataset, base = _case(hidden)
+    sets = [(hidden,), ("wear",), ("stribeck",)]
+    out = score_screen(dataset, base, sets, workers=1)
+    assert out[0].effects == (hidden,), out
+    assert out[0].error < 0.7 * base.error, out
+    # the first set pays for the base's Jacobian too; every other costs a third of a short fit
+    assert all(s.evaluations < SHORT_FIT_EVALUATIONS / 3 for s in out if s.effects != sets[0])
+    # a set that helps nowhere screens at the model's own error, re-fitted linearly
+    assert all(s.error <= base.error * (1 + 1e-9) for s in out)
+
+
+@pytest.mark.slow  # a short base fit and six screens per case: about 5 s each
+@pytest.mark.parametrize("hidden", [
+    "load_dependent_friction", "stribeck", "interface_damping", "sensor_dynamics", "presliding",
+    "rate_state", "load_dependent_stiffness", "contact_degradation",
+    pytest.param("stress_evolution", marks=pytest.mark.xfail(
+        strict=True, reason="at duration_scale 0.3 the hidden stress evolution moves the error "
+        "from 0.27 to 0.23 only in a short fit's hands, and none of the screen's points (the "
+        "score step and eight spread points, the base re-fitted linearly) gains on the off "
+        "value: a weak signature whose optimum lies in a fraction of the plausible range")),
+])
+def test_the_screen_keeps_the_hidden_effect(hidden: str):
+    dataset, base = _case(hidden)
+    pool = list(dict.fromkeys([hidden, *DECOYS[hidden], "stribeck", "presliding", "wear"]))
+    out = score_screen(dataset, base, [(c,) for c in pool], workers=1)
+    kept = [s.effects for s in out[: sel.SCREEN_KEEP]]
+    assert (hidden,) in kept, [(s.effects, round(s.error, 3)) for s in out]
