@@ -120,7 +120,9 @@ def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
     return out
 
 
-def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str, Any]:
+def draw_case(i: int, seed: int) -> tuple[list[Any], tuple[str, ...], ModelChoice, dict[str, Any]]:
+    """Case ``i`` of ``seed``: its runs, the hidden effects, the generating model and how it was
+    drawn (rig, rate, noise factor, protocols). A case depends only on ``seed`` and ``i``."""
     rng = np.random.default_rng(seed * 7919 + i)
     n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
     hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
@@ -137,6 +139,13 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str
             break
     else:
         raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
+    drawn = {"rate_hz": round(rate_hz), "noise_factor": round(noise_factor, 2),
+             "rig": {k: float(f"{val:.3g}") for k, val in rig.items()}, "protocols": protocols}
+    return runs, hidden, truth, drawn
+
+
+def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str, Any]:
+    runs, hidden, truth, drawn = draw_case(i, seed)
     t0 = time.perf_counter()
     ds = prepare_dataset(runs)
     say = (lambda msg: print(f"[case {i}] {msg}", file=sys.stderr, flush=True)) if verbose else None
@@ -152,11 +161,11 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str
     base_err, final_err = diag.steps[0].error, diag.final_model.error
     hit = sorted(final) == sorted(hidden) and (not hidden or final_err <= 0.5 * base_err)
     return {"case": i, "hidden": list(hidden), "final": final, "added": added,
-            "rate_hz": round(rate_hz), "noise_factor": round(noise_factor, 2),
+            "rate_hz": drawn["rate_hz"], "noise_factor": drawn["noise_factor"],
             "removed": removed, "baseline_error": base_err, "final_error": final_err,
             "hit": hit, "wall_s": wall, "n_events": ds.n_events, "truth_error": truth_err,
             "unexplained": diag.rounds[-1].verdict.unexplained,
-            "rig": {k: float(f"{val:.3g}") for k, val in rig.items()}, "protocols": protocols}
+            "rig": drawn["rig"], "protocols": drawn["protocols"]}
 
 
 def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str, ...],

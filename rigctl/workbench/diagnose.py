@@ -42,7 +42,7 @@ from rigctl.workbench.identify import (
     with_uncertainties,
 )
 from rigctl.workbench.mass_search import refit_over_mass
-from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.model_choice import ModelChoice, candidate_effects, without_effect
 from rigctl.workbench.pairs import Pair, beats_single, best_pair, wants_pairs
 from rigctl.workbench.pairs import firsts as pair_firsts
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, default_workers, run_tasks
@@ -500,14 +500,6 @@ def _rig_fn(dataset: Dataset) -> float | None:
     fns = [float(np.median(r.drive.fn_N)) for r in dataset.runs]
     fn = float(np.median(fns)) if fns else math.nan
     return fn if 0.0 < fn <= MAX_NORMAL_FORCE_N else None
-
-
-def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
-    """``choice`` without ``effect`` (its parameters dropped, the others kept)."""
-    prefix = f"{effect}."
-    values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
-    return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
-                       choice.effect_files)
 
 
 def _best_known(diag: Diagnosis, rest: FitResult) -> FitResult:

@@ -60,3 +60,17 @@ def candidate_effects(choice: ModelChoice) -> list[str]:
 
 def effect_class(name: str, effect_files: tuple[str, ...] = ()) -> type[Effect] | None:
     return registry_for(effect_files).get(name)
+
+
+def effect_of(parameter: str) -> str:
+    """The effect a parameter belongs to (``stribeck.v_s_m_s`` -> ``stribeck``); a base
+    parameter (no dot) belongs to none: ``""``."""
+    return parameter.split(".", 1)[0] if "." in parameter else ""
+
+
+def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
+    """``choice`` without ``effect`` (its parameters dropped, the others kept)."""
+    prefix = f"{effect}."
+    values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
+    return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
+                       choice.effect_files)

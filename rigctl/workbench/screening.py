@@ -46,7 +46,7 @@ from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.model_choice import ModelChoice, effect_of
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.search import SearchState
 from rigctl.workbench.search_pool import OK, EvaluationPool
@@ -97,7 +97,7 @@ def profiled_cost(r: FloatArray, Q: FloatArray) -> float:
 
 
 def _effect_coordinates(space: SearchSpace, effects: Sequence[str], count_new: bool) -> list[int]:
-    idx = [i for i, fp in enumerate(space.free) if fp.name.split(".", 1)[0] in effects]
+    idx = [i for i, fp in enumerate(space.free) if effect_of(fp.name) in effects]
     if count_new and space.count:
         idx.append(len(space.free))
     return idx

@@ -80,7 +80,7 @@ from rigctl.workbench.identify import (
     next_fd_step,
     physically_valid,
 )
-from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.model_choice import ModelChoice, effect_of
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.search_pool import (
     FAILED,
@@ -169,7 +169,7 @@ def added_effects(choice: ModelChoice) -> list[str]:
     """The effects of ``choice`` being added: those it states no value of (an effect added to a
     model, :meth:`ModelChoice.with_effect`, has none; a fitted one has all its fitted values).
     The start with these off is the model they are added to."""
-    stated = {name.split(".", 1)[0] for name in choice.values if "." in name}
+    stated = {effect_of(name) for name in choice.values} - {""}
     return [e for e in choice.effects if e not in stated]
 
 

@@ -38,7 +38,7 @@ from rigctl.records.signals import FloatArray
 from rigctl.workbench.data_scale import NEAR_PRESET, scale_effect_values, scale_ratios
 from rigctl.workbench.fitting import campaign_scale
 from rigctl.workbench.identify import DYNAMIC_PARAMS, FreeParam, free_params
-from rigctl.workbench.model_choice import ModelChoice, effect_class
+from rigctl.workbench.model_choice import ModelChoice, effect_class, effect_of
 from rigctl.workbench.search_pool import Point
 
 BASE_FACTOR = NEAR_PRESET
@@ -133,7 +133,7 @@ class SearchSpace:
         """This space with only ``effects``' coordinates in :attr:`off`: a model that already has
         fitted effects and gets more keeps its own at their values in the start with the new ones
         off, which is then that model itself."""
-        keep = {i: u for i, u in self.off.items() if self.free[i].name.split(".", 1)[0] in effects}
+        keep = {i: u for i, u in self.off.items() if effect_of(self.free[i].name) in effects}
         return replace(self, off=keep)
 
     def off_point(self, x: FloatArray) -> FloatArray:
@@ -240,7 +240,7 @@ def effect_ranges(dataset: Dataset, choice: ModelChoice,
         rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
         ratios = scale_ratios(scale, base, rate)
     out: dict[str, tuple[float, float, float, float]] = {}
-    for effect in sorted({fp.name.split(".", 1)[0] for fp in free}):
+    for effect in sorted({effect_of(fp.name) for fp in free} - {""}):
         cls = effect_class(effect, choice.effect_files)
         if cls is None:
             continue

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.model_choice import ModelChoice, without_effect
 from rigctl.workbench.ranking import CandidateScore, score_candidate
 
 FitFn = Callable[[Dataset, ModelChoice], FitResult]
@@ -112,14 +112,6 @@ def with_effects(choice: ModelChoice, effects: Sequence[str]) -> ModelChoice:
     for name in effects:
         choice = choice.with_effect(name)
     return choice
-
-
-def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
-    """``choice`` without ``effect`` (its parameters dropped, the others kept)."""
-    prefix = f"{effect}."
-    values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
-    return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
-                       choice.effect_files)
 
 
 def _score(name: str, base: FitResult, cand: FitResult, n_events: int) -> CandidateScore:
