@@ -144,12 +144,18 @@ def search_model(
     check_names(rig, [p.name for p in choice.parameter_table()])
     if rig.fixed:
         choice = choice.with_values(rig.fixed)
-    if not physically_valid(choice, fn_range(dataset)):
-        raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
     identify_free = free_params(choice, rig=rig)
     scaled = data_scaled(dataset, choice, identify_free)
     space = build_space(dataset, choice, scaled or choice,
                         spreads_elements(choice)).switching_off(added_effects(choice))
+    fns = fn_range(dataset)
+    # an effect being added is searched from off too: its library defaults may make the given
+    # start invalid (a load-dependent friction whose default slope takes mu_k above mu_s at the
+    # campaign's loads) while the model it is added to is valid; that start is then one that
+    # cannot be run, not an error
+    at_off = choice.with_values(space.values(space.off_point(space.vector(choice))))
+    if not (physically_valid(choice, fns) or physically_valid(at_off, fns)):
+        raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
     budget = budget or default_budget(space.dim)
     if budget.progress is None:
         budget.progress = progress

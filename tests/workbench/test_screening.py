@@ -4,6 +4,8 @@ keeps, at a fraction of a short fit's evaluations."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,7 @@ from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench import selection as sel
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
-from rigctl.workbench.identify import FitResult
+from rigctl.workbench.identify import FitResult, fn_range, physically_valid
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.screening import base_basis, profiled_cost, score_screen
 from rigctl.workbench.search import search_model
@@ -38,12 +40,16 @@ def test_the_profile_removes_what_the_base_explains_and_keeps_the_rest():
     assert base_basis(np.zeros((5, 2))).shape == (5, 0)
 
 
-def _case(hidden: str) -> tuple[Dataset, FitResult]:
+def _dataset(hidden: str) -> Dataset:
     model = build_model("paper", effects=[hidden], params=TEST_BASE,
                         effect_params={hidden: scaled_values(hidden, MAGNITUDE)})
     runs = simulate_campaign(model, PROTOCOL_FOR_EFFECT[hidden], seed=3, velocity_m_s=2e-5,
                              duration_scale=0.3)
-    dataset = prepare_dataset(runs)
+    return prepare_dataset(runs)
+
+
+def _case(hidden: str) -> tuple[Dataset, FitResult]:
+    dataset = _dataset(hidden)
     base = search_model(dataset, ModelChoice("paper"),
                         budget=Budget(max_evaluations=SHORT_FIT_EVALUATIONS), workers=1,
                         with_uncertainty=False)
@@ -79,3 +85,19 @@ def test_the_screen_keeps_the_hidden_effect(hidden: str):
     out = score_screen(dataset, base, [(c,) for c in pool], workers=1)
     kept = [s.effects for s in out[: sel.SCREEN_KEEP]]
     assert (hidden,) in kept, [(s.effects, round(s.error, 3)) for s in out]
+
+
+def test_an_effect_whose_defaults_are_invalid_is_searched_from_off():
+    """A model whose kinetic friction is close to the initial stage's mu_s,max: the default
+    exponents of load_dependent_friction take mu_k above it at the sweep's 350 N, so the model
+    with the effect at its defaults cannot be run, but the model it is added to can. Adding it
+    must search from off (the screen and the fit alike), not refuse the model."""
+    dataset = _dataset("load_dependent_friction")
+    model = ModelChoice("paper").with_values({"mu_s": 0.14, "mu_k": 0.139, "mu_smax": 0.141})
+    added = model.with_effect("load_dependent_friction")
+    assert not physically_valid(added, fn_range(dataset))
+    assert physically_valid(model, fn_range(dataset))
+    fit = search_model(dataset, added, budget=Budget(max_evaluations=30), workers=0,
+                       with_uncertainty=False)
+    assert math.isfinite(fit.error)
+    assert physically_valid(fit.choice, fn_range(dataset))
