@@ -183,7 +183,9 @@ def score_screen(
     say: Say = lambda _m: None,
 ) -> list[Screened]:
     """Each effect set of ``sets`` added to the fitted ``model`` and screened (module docstring),
-    best (lowest screened error) first. ``budget`` bounds and cancels the whole screen."""
+    best (lowest screened error) first. ``budget`` counts the screen's evaluations and cancels it
+    (:meth:`~rigctl.workbench.budget.Budget.cancel`); a set's cost is fixed (module docstring), so
+    no evaluation limit is applied."""
     budget = budget or Budget()
     n_workers = default_workers() if workers is None else workers
     Q: FloatArray | None = None
