@@ -9,7 +9,7 @@ travel as the paths of their files and are loaded (once per process) through
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from rigctl.model import BASES, ModelSpec, ParamInfo, build_model
@@ -66,6 +66,13 @@ def effect_of(parameter: str) -> str:
     """The effect a parameter belongs to (``stribeck.v_s_m_s`` -> ``stribeck``); a base
     parameter (no dot) belongs to none: ``""``."""
     return parameter.split(".", 1)[0] if "." in parameter else ""
+
+
+def with_effects(choice: ModelChoice, effects: Sequence[str]) -> ModelChoice:
+    """``choice`` with ``effects`` added (their parameters at their defaults)."""
+    for name in effects:
+        choice = choice.with_effect(name)
+    return choice
 
 
 def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:

@@ -39,14 +39,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import qmc
 
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.model_choice import ModelChoice, effect_of
+from rigctl.workbench.model_choice import ModelChoice, effect_of, with_effects
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.search import SearchState
 from rigctl.workbench.search_pool import OK, EvaluationPool
@@ -109,9 +108,7 @@ class _SetScreen:
     def __init__(self, dataset: Dataset, model: FitResult, effects: tuple[str, ...],
                  budget: Budget, workers: int, seed: int) -> None:
         self.dataset, self.model, self.effects, self.seed = dataset, model, effects, seed
-        choice = model.choice
-        for name in effects:
-            choice = choice.with_effect(name)
+        choice = with_effects(model.choice, effects)
         self.choice: ModelChoice = choice
         self.space = build_space(dataset, choice, choice,
                                  spreads_elements(choice)).switching_off(effects)
@@ -168,13 +165,7 @@ class _SetScreen:
         idx = [i for i in self.coords if i in self.space.spread]
         if not idx:
             return []
-        m = max(1, math.ceil(math.log2(SPREAD_POINTS)))
-        unit = qmc.Sobol(d=len(idx), scramble=True, seed=self.seed).random_base2(m)
-        lo = np.array([self.space.spread[i][0] for i in idx])
-        hi = np.array([self.space.spread[i][1] for i in idx])
-        return [self.space.spread_point(self.x0, dict(zip(idx, lo + row * (hi - lo),
-                                                          strict=True)))
-                for row in unit]
+        return self.space.sobol_points(self.x0, idx, SPREAD_POINTS, self.seed)
 
 
 def score_screen(

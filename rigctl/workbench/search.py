@@ -55,7 +55,6 @@ from dataclasses import replace
 import cma
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import qmc
 
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
@@ -385,14 +384,8 @@ class SearchState:
                 if off.tobytes() not in seen:
                     seen.add(off.tobytes())
                     points.append(off)
-            idx = sorted(self.space.spread)
-            m = max(1, math.ceil(math.log2(popsize(self.space.dim))))
-            unit = qmc.Sobol(d=len(idx), scramble=True, seed=self.seed).random_base2(m)
-            lo = np.array([self.space.spread[i][0] for i in idx])
-            hi = np.array([self.space.spread[i][1] for i in idx])
-            for row in unit:
-                points.append(self.space.spread_point(
-                    x0, dict(zip(idx, lo + row * (hi - lo), strict=True))))
+            points += self.space.sobol_points(x0, sorted(self.space.spread),
+                                              popsize(self.space.dim), self.seed)
             self.rank_starts(points)
         self.stages.append(f"starts {self.budget.used - used}")
         self.budget.report(f"starts: {self.budget.used} evaluated")

@@ -27,10 +27,11 @@ reason.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.stats import qmc
 
 from rigctl.model.effects import Effect
 from rigctl.records.dataset import Dataset
@@ -154,6 +155,18 @@ class SearchSpace:
         n_free = len(self.free)
         n = round(2.0 ** float(x[n_free])) if self.count else None
         return Point(x[:n_free].copy(), n)
+
+    def sobol_points(self, x0: FloatArray, idx: Sequence[int], n: int,
+                     seed: int) -> list[FloatArray]:
+        """``x0`` with coordinates ``idx`` (of :attr:`spread`) set to scrambled Sobol points over
+        their plausible intervals (``scipy.stats.qmc``), and those that follow them moved with
+        them: ``n`` rounded up to a power of two, at least 2 (a balanced Sobol sequence)."""
+        m = max(1, math.ceil(math.log2(max(n, 1))))
+        unit = qmc.Sobol(d=len(idx), scramble=True, seed=seed).random_base2(m)
+        lo = np.array([self.spread[i][0] for i in idx])
+        hi = np.array([self.spread[i][1] for i in idx])
+        return [self.spread_point(x0, dict(zip(idx, lo + row * (hi - lo), strict=True)))
+                for row in unit]
 
     def values(self, x: FloatArray) -> dict[str, float]:
         """Parameter values of vector ``x`` (the element count included where searched)."""

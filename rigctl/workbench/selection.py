@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.model_choice import ModelChoice, without_effect
+from rigctl.workbench.model_choice import ModelChoice, with_effects, without_effect
 from rigctl.workbench.ranking import CandidateScore, score_candidate
 
 FitFn = Callable[[Dataset, ModelChoice], FitResult]
@@ -105,13 +105,6 @@ class Selection:
     final: FitResult
     steps: list[Step] = field(default_factory=list)
     rounds: list[list[Trial]] = field(default_factory=list)
-
-
-def with_effects(choice: ModelChoice, effects: Sequence[str]) -> ModelChoice:
-    """``choice`` with ``effects`` added (their parameters at their defaults)."""
-    for name in effects:
-        choice = choice.with_effect(name)
-    return choice
 
 
 def _score(name: str, base: FitResult, cand: FitResult, n_events: int) -> CandidateScore:
