@@ -28,6 +28,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -120,11 +121,13 @@ def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
     return out
 
 
-def draw_case(i: int, seed: int) -> tuple[list[Any], tuple[str, ...], ModelChoice, dict[str, Any]]:
+def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN,
+              ) -> tuple[list[Any], tuple[str, ...], ModelChoice, dict[str, Any]]:
     """Case ``i`` of ``seed``: its runs, the hidden effects, the generating model and how it was
-    drawn (rig, rate, noise factor, protocols). A case depends only on ``seed`` and ``i``."""
+    drawn (rig, rate, noise factor, protocols). A case depends only on ``seed``, ``i`` and the
+    hidden-effect counts ``pattern`` cycles through."""
     rng = np.random.default_rng(seed * 7919 + i)
-    n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
+    n_hidden = pattern[i % len(pattern)]
     hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
     for _attempt in range(20):
         rig = draw_rig(rng)
@@ -166,6 +169,22 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str
             "hit": hit, "wall_s": wall, "n_events": ds.n_events, "truth_error": truth_err,
             "unexplained": diag.rounds[-1].verdict.unexplained,
             "rig": drawn["rig"], "protocols": drawn["protocols"]}
+
+
+def run_cases(run: Callable[[int], dict[str, Any]], first: int, cases: int,
+              jsonl: str) -> list[dict[str, Any]]:
+    """``run`` of each case index from ``first``: each result printed as a JSON line as it ends
+    (and appended to ``jsonl`` where given), all of them returned."""
+    results = []
+    for i in range(first, first + cases):
+        res = run(i)
+        results.append(res)
+        line = json.dumps(res)
+        print(line, flush=True)
+        if jsonl:
+            with open(jsonl, "a", encoding="utf-8") as fh:
+                fh.write(line + "\n")
+    return results
 
 
 def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str, ...],
@@ -212,15 +231,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--verbose", action="store_true",
                     help="the diagnosis's progress (each candidate's fit, each step) on stderr")
     args = ap.parse_args(argv)
-    results = []
-    for i in range(args.first, args.first + args.cases):
-        res = run_case(i, args.seed, args.workers, args.verbose)
-        results.append(res)
-        line = json.dumps(res)
-        print(line, flush=True)
-        if args.jsonl:
-            with open(args.jsonl, "a", encoding="utf-8") as fh:
-                fh.write(line + "\n")
+    results = run_cases(lambda i: run_case(i, args.seed, args.workers, args.verbose),
+                        args.first, args.cases, args.jsonl)
     hits = sum(r["hit"] for r in results)
     print(f"hits {hits}/{len(results)}; wall {sum(r['wall_s'] for r in results):.0f} s",
           file=sys.stderr)

@@ -17,12 +17,11 @@ error against the base's. Nothing asserts: the figures are for the report.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from typing import Any
 
-from benchmarks.bench_other_rigs import draw_case
+from benchmarks.bench_other_rigs import draw_case, run_cases
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
@@ -93,15 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--short", action="store_true", help="also screen by short fits")
     ap.add_argument("--jsonl", default="")
     args = ap.parse_args(argv)
-    results = []
-    for i in range(args.first, args.first + args.cases):
-        res = run_case(i, args.seed, args.workers, args.short)
-        results.append(res)
-        line = json.dumps(res)
-        print(line, flush=True)
-        if args.jsonl:
-            with open(args.jsonl, "a", encoding="utf-8") as fh:
-                fh.write(line + "\n")
+    results = run_cases(lambda i: run_case(i, args.seed, args.workers, args.short),
+                        args.first, args.cases, args.jsonl)
     with_hidden = [r for r in results if r["hidden"]]
     for key in ("score", "short"):
         got = [r[key] for r in with_hidden if key in r]

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import multiprocessing
 import sys
@@ -32,13 +31,9 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-import numpy as np
-
 import rigctl.workbench.evaluate as evaluate_module
-from benchmarks.bench_other_rigs import HIDEABLE, MIN_EVENTS, NOISE_FACTOR_RANGE, RATE_RANGE_HZ, draw_rig
-from benchmarks.bench_other_rigs import _campaign as campaign
-from benchmarks.bench_other_rigs import _log_uniform as log_uniform
-from rigctl.data import DataError
+from benchmarks.bench_other_rigs import draw_case as other_rigs_case
+from benchmarks.bench_other_rigs import run_cases
 from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset, prepare_dataset
@@ -53,22 +48,10 @@ model; two-effect cases are a diagnosis's business)."""
 
 
 def draw_case(i: int, seed: int) -> tuple[Dataset, ModelChoice, tuple[str, ...]]:
-    """Case ``i`` of ``seed``: drawn as bench_other_rigs.run_case draws its rig and campaign."""
-    rng = np.random.default_rng(seed * 7919 + i)
-    n_hidden = HIDDEN_PATTERN[i % len(HIDDEN_PATTERN)]
-    hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
-    for _attempt in range(20):
-        rig = draw_rig(rng)
-        rate_hz = log_uniform(rng, *RATE_RANGE_HZ)
-        noise_factor = log_uniform(rng, *NOISE_FACTOR_RANGE)
-        runs, _protocols, truth = campaign(rng, rig, hidden, rate_hz, noise_factor, seed)
-        try:
-            tlre = prepare_dataset([r for r in runs if r.source.startswith("tlre")])
-        except DataError:
-            continue
-        if tlre.n_events >= MIN_EVENTS:
-            return prepare_dataset(runs), truth, hidden
-    raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
+    """Case ``i`` of ``seed``: drawn by :func:`benchmarks.bench_other_rigs.draw_case` with this
+    benchmark's HIDDEN_PATTERN."""
+    runs, hidden, truth, _drawn = other_rigs_case(i, seed, HIDDEN_PATTERN)
+    return prepare_dataset(runs), truth, hidden
 
 
 class EvaluationCounter:
@@ -163,15 +146,8 @@ def main(argv: list[str] | None = None) -> int:
                          "two versions of the search side by side)")
     args = ap.parse_args(argv if argv is not None else
                         [a for a in sys.argv[1:] if a not in ("--quick", "--json")])
-    rows = []
-    for i in range(args.first, args.first + args.cases):
-        row = run_case(i, args.seed, args.workers, args.which)
-        rows.append(row)
-        line = json.dumps(row)
-        print(line, flush=True)
-        if args.jsonl:
-            with open(args.jsonl, "a", encoding="utf-8") as fh:
-                fh.write(line + "\n")
+    rows = run_cases(lambda i: run_case(i, args.seed, args.workers, args.which),
+                     args.first, args.cases, args.jsonl)
     print(f"{'case':>6} {'hidden':<24} {'truth':>7} {'old E':>7} {'new E':>7} {'old n':>6} "
           f"{'new n':>6} {'old s':>7} {'new s':>7}  (n: every simulation, counted alike)")
     for r in rows:
