@@ -7,7 +7,7 @@
 from __future__ import annotations
 
 from rigctl.model.drive import MAX_NORMAL_FORCE_N, Drive
-from rigctl.model.effects import LIBRARY, CoreParams, Effect, SlipContext
+from rigctl.model.effects import LIBRARY, CoreParams, Effect, LinearTerms, SlipContext
 from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError, ParamInfo, ParamSpec
 from rigctl.model.result import SimResult, SlipEvent
@@ -21,6 +21,7 @@ __all__ = [
     "CoreParams",
     "Drive",
     "Effect",
+    "LinearTerms",
     "ModelSpec",
     "NoiseModel",
     "ParamInfo",

@@ -156,6 +156,11 @@ class ModelSpec:
         theta0 = 0.0
         for e in self.effects:
             e.effect.apply(core, e.values)
+            lin = e.effect.linear_terms(e.values)
+            if lin is not None:
+                lin = lin.checked(f"effect '{e.effect.name}'")
+                cp[layout.P_CINT] += lin.damping_N_s_per_m
+                cp[layout.P_KAPPA] += lin.normal_per_drive_force
             f = e.effect.element_threshold_factors(e.values, n)
             if f is not None:
                 factors = factors * np.asarray(f, dtype=np.float64)

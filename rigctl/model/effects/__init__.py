@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rigctl.model.effects.base import CoreParams, Effect, SlipContext
+from rigctl.model.effects.base import CoreParams, Effect, LinearTerms, SlipContext
 from rigctl.model.effects.contact_degradation import ContactDegradation
 from rigctl.model.effects.interface_damping import InterfaceDamping
 from rigctl.model.effects.load_dependent_friction import LoadDependentFriction
@@ -35,4 +35,4 @@ LIBRARY: dict[str, type[Effect]] = {
 }
 """The canonical effects by name, in the order of docs/effects.md."""
 
-__all__ = ["LIBRARY", "CoreParams", "Effect", "SlipContext"]
+__all__ = ["LIBRARY", "CoreParams", "Effect", "LinearTerms", "SlipContext"]

@@ -5,13 +5,17 @@
 A Kelvin-Voigt dashpot in parallel with the interface (e.g. the dry-friction damping of the elastic
 PMMA that paper Sec. 4.1 invokes for the fading stick-slip at 200 N). Ringing after a slip decays
 faster and the slip residual follows the velocity. Off: c_i = 0.
+
+The dashpot is linear in the slider's velocity: the effect declares it as a linear term
+(:class:`~rigctl.model.effects.base.LinearTerms`, the API a plug-in uses for a drag of its own), and
+the exact path integrates it in closed form.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from rigctl.model.effects.base import CoreParams, Effect
+from rigctl.model.effects.base import Effect, LinearTerms
 from rigctl.model.params import ParamSpec
 
 
@@ -26,5 +30,5 @@ class InterfaceDamping(Effect):
                   off=0.0, scales_with="damping"),
     )
 
-    def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
-        core["c_interface_N_s_per_m"] = values["c_N_s_per_m"]
+    def linear_terms(self, values: Mapping[str, float]) -> LinearTerms:
+        return LinearTerms(damping_N_s_per_m=values["c_N_s_per_m"])

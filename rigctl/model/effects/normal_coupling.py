@@ -6,13 +6,16 @@ The tangential force in the drive path tilts the loading frame and changes the n
 interface and the force sensor see (a linear moment-arm coupling; e.g. the tilt of paper Fig. 2's
 angle adjusters). The friction thresholds use Fn,eff, so the residual of a model without it correlates
 with Ft and Fn moves during a slip. Off: kappa = 0.
+
+Fn,eff is linear in the slider's position X: the effect declares it as a linear term
+(:class:`~rigctl.model.effects.base.LinearTerms`), which the exact path integrates in closed form.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from rigctl.model.effects.base import CoreParams, Effect
+from rigctl.model.effects.base import Effect, LinearTerms
 from rigctl.model.params import ParamSpec
 
 
@@ -26,5 +29,5 @@ class NormalCoupling(Effect):
         ParamSpec("kappa", 0.1, -0.5, 0.5, "-", "dFn / dFt coupling", off=0.0),
     )
 
-    def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:
-        core["kappa"] = values["kappa"]
+    def linear_terms(self, values: Mapping[str, float]) -> LinearTerms:
+        return LinearTerms(normal_per_drive_force=values["kappa"])
