@@ -9,12 +9,21 @@ The same drag -c V (c = 30 N s/m) on the paper model, 3 s at 1e-4 m/s and 300 N 
 
 Target (issue 37): plugin / built_in_general >= 0.5 in speed. CPU seconds, medians of repeats.
 
-``--library`` adds what moving a library effect onto the term API would cost today: ``rate_state``
-and ``presliding`` on their own paths (exact stick, RK4 only in ``rate_state``'s slips) against the
-general path (forced there as above), on a slide-hold-slide of the workbench's kind (2e-5 m/s,
-holds of 1 and 3 s, 300 N), and how far each library effect on the general path (forced there as
-above) lies from its own exact path: the largest |Ft| difference and slip start time difference,
-3 s at 1e-4 m/s and 300 N (``<effect>_general_vs_exact_max_ft_N``, ``..._max_slip_start_s``).
+``measure_linear_moves`` (always run): the two library effects stated as linear terms
+(``interface_damping``: a drag -c V, ``normal_coupling``: Fn_eff = Fn + kappa K0 (x_stage - X);
+``Effect.linear_terms``, on the exact path) against the same coefficient written straight into the
+kernel's vector (``built_in``: what their ``apply`` hooks did before they moved), side by side on
+the same runs: CPU seconds, ``<effect>_api_speed_vs_built_in`` (target >= 0.5) and the largest
+|Ft| and |Fn| differences (0: the same bits). Both on the slide above and on the slide-hold-slide
+below; the drag also as a plug-in force term on the general path, for the ratio a function term
+would give.
+
+``--library`` adds what moving a library effect onto the function terms would cost today:
+``rate_state`` and ``presliding`` on their own paths (exact stick, RK4 only in ``rate_state``'s
+slips) against the general path (forced there as above), on a slide-hold-slide of the workbench's
+kind (2e-5 m/s, holds of 1 and 3 s, 300 N), and how far each library effect on the general path
+(forced there as above) lies from its own exact path: the largest |Ft| difference and slip start
+time difference, 3 s at 1e-4 m/s and 300 N (``<effect>_general_vs_exact_max_ft_N``, ``..._max_slip_start_s``).
 """
 
 from __future__ import annotations
@@ -28,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model
+from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model, layout
 from rigctl.model.effects import LIBRARY
 
 C_N_S_PER_M = 30.0
@@ -95,9 +104,48 @@ def measure(duration_s: float = 3.0, repeats: int = 3) -> dict[str, float]:
     return out
 
 
+LINEAR_MOVES = {"interface_damping": (layout.P_CINT, "c_N_s_per_m", 30.0),
+                "normal_coupling": (layout.P_KAPPA, "kappa", 0.1)}
+"""Each effect moved onto linear terms: its kernel slot, its parameter, the value benchmarked."""
+
+
+def _shs() -> Drive:
+    """The slide-hold-slide of ``measure_library_moves`` (workbench kind: 2e-5 m/s, 1 and 3 s)."""
+    return Drive.segments(300.0, [(5.0, 2e-5), (1.0, 0.0), (5.0, 2e-5), (3.0, 0.0), (5.0, 2e-5)])
+
+
+def measure_linear_moves(duration_s: float = 3.0, repeats: int = 3) -> dict[str, float]:
+    """Each library effect on the linear-term API against its coefficient set in the kernel."""
+    out: dict[str, float] = {}
+    drives = {"slide": Drive.constant(300.0, 1e-4, duration_s), "shs": _shs()}
+    for name, (slot, param, value) in LINEAR_MOVES.items():
+        api = Simulator(build_model("paper", effects=[name],
+                                    effect_params={name: {param: value}}))
+        built = Simulator(build_model("paper"))
+        built._setup.cp[slot] = value  # the coefficient written into the kernel's vector directly
+        assert not api._setup.terms.active and not built._setup.terms.active
+        for dname, drive in drives.items():
+            key = f"{name}_{dname}"
+            t_built = _cpu_s(built, drive, repeats)
+            t_api = _cpu_s(api, drive, repeats)
+            out[f"{key}_built_in_cpu_s"] = t_built
+            out[f"{key}_api_cpu_s"] = t_api
+            out[f"{key}_api_speed_vs_built_in"] = t_built / t_api
+            a = api.run(drive)
+            b = built.run(drive)
+            out[f"{key}_max_ft_difference_N"] = float(np.max(np.abs(a.ft_N - b.ft_N)))
+            out[f"{key}_max_fn_difference_N"] = float(np.max(np.abs(a.fn_N - b.fn_N)))
+    plugin = Simulator(build_model("paper", effects=[PluginDrag]))
+    t_plugin = _cpu_s(plugin, drives["slide"], repeats)
+    out["interface_damping_slide_as_force_term_cpu_s"] = t_plugin
+    out["interface_damping_slide_force_term_speed_vs_built_in"] = (
+        out["interface_damping_slide_built_in_cpu_s"] / t_plugin)
+    return out
+
+
 def measure_library_moves(repeats: int = 2) -> dict[str, float]:
     """CPU seconds of two library effects on their own path and on the general path."""
-    drive = Drive.segments(300.0, [(5.0, 2e-5), (1.0, 0.0), (5.0, 2e-5), (3.0, 0.0), (5.0, 2e-5)])
+    drive = _shs()
     out: dict[str, float] = {}
     for name in ("rate_state", "presliding"):
         own = _cpu_s(Simulator(build_model("paper", effects=[name])), drive, repeats)
@@ -128,6 +176,7 @@ def library_agreement(duration_s: float = 3.0) -> dict[str, float]:
 def main() -> int:
     quick = "--quick" in sys.argv
     res = measure(1.0 if quick else 3.0, 2 if quick else 5)
+    res.update(measure_linear_moves(1.0 if quick else 3.0, 21))  # runs of ms: many repeats
     if "--library" in sys.argv:
         res.update(measure_library_moves())
         res.update(library_agreement())
@@ -138,7 +187,14 @@ def main() -> int:
             print(f"{k:40s} {v:.4g}")
     ok = res["plugin_speed_vs_built_in_general"] >= 0.5
     print(f"target plug-in >= 50 % of built in (same path): {'met' if ok else 'NOT met'}")
-    return 0 if ok else 1
+    moved = [k for k in res if k.endswith("_api_speed_vs_built_in")]
+    ok_moved = all(res[k] >= 0.5 for k in moved)
+    same = all(res[k] == 0.0 for k in res if k.endswith(("_max_ft_difference_N",
+                                                         "_max_fn_difference_N"))
+               and k.startswith(tuple(LINEAR_MOVES)))
+    print(f"target library effects on linear terms >= 50 % of built in: "
+          f"{'met' if ok_moved else 'NOT met'}; results {'the same bits' if same else 'DIFFER'}")
+    return 0 if ok and ok_moved and same else 1
 
 
 if __name__ == "__main__":
