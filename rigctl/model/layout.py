@@ -38,7 +38,9 @@ P_SPREAD = 24  # presliding (Iwan) spread of element static thresholds [-]
 P_CINT = 25  # interface viscous damping [N s/m]
 P_KAPPA = 26  # normal coupling: dFn / dF_drive [-]
 P_TAU_S = 27  # force-sensor time constant [s] (0 = ideal sensor)
-N_PARAMS = 28
+P_KPAR = 28  # spring from the slider to the frame, in parallel with the drive (linear terms) [N/m]
+P_XPAR = 29  # the slider's position X at which that spring is relaxed: X at t = 0 (per run) [m]
+N_PARAMS = 30
 
 # --- float state vector -----------------------------------------------------------------------
 S_T = 0  # time [s]

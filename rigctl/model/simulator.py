@@ -63,6 +63,7 @@ class _Integration:
     def __init__(self, setup: CoreSetup, x_stage0_m: float, fn0_N: float) -> None:
         self.setup = setup
         self.cp = setup.cp.copy()
+        self.cp[layout.P_XPAR] = x_stage0_m  # parallel springs are relaxed where the slider starts
         self.core = CoreParams(self.cp)
         n = setup.weights.shape[1]
         self.n = n

@@ -160,6 +160,7 @@ class ModelSpec:
             if lin is not None:
                 lin = lin.checked(f"effect '{e.effect.name}'")
                 cp[layout.P_CINT] += lin.damping_N_s_per_m
+                cp[layout.P_KPAR] += lin.stiffness_N_per_m
                 cp[layout.P_KAPPA] += lin.normal_per_drive_force
             f = e.effect.element_threshold_factors(e.values, n)
             if f is not None:

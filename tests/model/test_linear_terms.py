@@ -5,7 +5,7 @@ same as a plug-in's), and a model with them keeps the exact path."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -54,6 +54,37 @@ class UserTilt(Effect):
 
     def linear_terms(self, values: Mapping[str, float]) -> LinearTerms:
         return LinearTerms(normal_per_drive_force=values["kappa"])
+
+
+class UserFlexure(Effect):
+    """A user's spring from the slider to the frame, relaxed where the slider starts."""
+
+    name = "user_flexure"
+    summary = "a parallel spring -k_p (X - X(0)) on the slider"
+    signature = "peaks grow with the distance slid"
+    reveal_protocol = "a long slide"
+    params = (ParamSpec("k_N_per_m", 2e5, 0.0, 1e7, "N/m", "spring stiffness", off=0.0),)
+
+    def linear_terms(self, values: Mapping[str, float]) -> LinearTerms:
+        return LinearTerms(stiffness_N_per_m=values["k_N_per_m"])
+
+
+def spring_force(p: np.ndarray, x: float, v: float, t: float, fn: float, z: np.ndarray) -> float:
+    return -p[0] * x  # the drives below start at x = 0: -k_p (X - X(0))
+
+
+class ForceTermFlexure(Effect):
+    """The same spring as a plug-in force term (the general path integrates it by RK4)."""
+
+    name = "force_term_flexure"
+    summary = "a parallel spring as a force term"
+    signature = "as user_flexure"
+    reveal_protocol = "a long slide"
+    params = UserFlexure.params
+
+    @staticmethod
+    def force_term() -> Callable[..., Any]:
+        return spring_force
 
 
 class NotFinite(Effect):
@@ -134,9 +165,70 @@ def test_at_off_values_linear_terms_leave_the_model_bit_for_bit():
           _run([]))
 
 
+def _x_at(res: SimResult, t_s: float) -> float:
+    """X at t_s from the last sample before it (a slip between two samples moves X)."""
+    k = int(np.searchsorted(res.t_s, t_s, side="right")) - 1
+    return float(res.x_specimen_m[k] + res.v_specimen_m_s[k] * (t_s - res.t_s[k]))
+
+
+def test_a_parallel_spring_adds_its_force_to_what_the_drive_must_pull():
+    """-k_p (X - X(0)) on the slider (classic model: one threshold mu_s Fn): at every slip's start
+    the drive carries mu_s Fn + k_p (X - X(0)), within 50 mN: the drive also carries M X'' of the
+    ringing the previous slip left (~20 mN at 3e-4 m/s), as in tests/model/test_plugin_terms.py's
+    spring; the spring's share grows past 10 N over the run, 200 times that."""
+    kp = 2e5
+    res = _run([UserFlexure], base="classic", user_flexure={"k_N_per_m": kp})
+    assert len(res.events) >= 3
+    for e in res.events:
+        assert e.peak_N == pytest.approx(0.15 * 300.0 + kp * _x_at(res, e.t_start_s), abs=0.05)
+    assert res.events[-1].peak_N > 0.15 * 300.0 + 10.0
+
+
+@pytest.mark.parametrize("effects", [[], ["rate_state"], ["sensor_dynamics"],
+                                     ["presliding", "rate_state"], ["stribeck"]],
+                         ids=["paper", "rate_state", "sensor", "presliding_aging", "stribeck"])
+def test_a_parallel_spring_on_the_exact_path_agrees_with_the_same_force_on_the_general_path(
+        effects):
+    """The linear spring on every branch of the exact path (closed-form stick, the fast stick
+    recurrence with and without the sensor filter and aging, RK4 slips) against the same force as
+    a plug-in force term on the general path (RK4 throughout): slip times within 10 us, peaks
+    within 10 mN, Ft within 0.15 N, the bounds tests/model/test_plugin_terms.py holds the two
+    paths to for every library effect (their derivation is there)."""
+    kp = {"k_N_per_m": 2e5}
+    exact = build_model("paper", effects=[*effects, UserFlexure], effect_params={"user_flexure": kp})
+    general = build_model("paper", effects=[*effects, ForceTermFlexure],
+                          effect_params={"force_term_flexure": kp})
+    assert not exact.core_setup().terms.active and general.core_setup().terms.active
+    a = Simulator(exact).run(SHS)
+    b = Simulator(general).run(SHS)
+    assert len(a.events) == len(b.events) >= 3
+    assert np.max(np.abs(a.ft_N - b.ft_N)) < 0.15
+    for ea, eb in zip(a.events, b.events, strict=True):
+        assert ea.t_start_s == pytest.approx(eb.t_start_s, abs=1e-5)
+        assert ea.peak_N == pytest.approx(eb.peak_N, abs=0.01)
+    base = Simulator(build_model("paper", effects=effects)).run(SHS)
+    assert abs(a.events[-1].peak_N - base.events[-1].peak_N) > 1.0  # the spring does act
+
+
+def test_a_parallel_spring_pulls_the_slider_back_when_the_specimens_part():
+    """With the specimens apart (Fn = 0) the spring ties the slider to the frame: it rings about a
+    point between the stage and X(0), k_p / (K0 + k_p) of the way back to X(0)."""
+    kp = 2e5
+    drive = Drive(np.array([0.0, 1.0, 1.01, 3.0]), np.array([0.0, 2e-4, 2e-4, 2e-4]),
+                  np.array([300.0, 300.0, 0.0, 0.0]))
+    res = _run([UserFlexure], drive, user_flexure={"k_N_per_m": kp})
+    k0 = build_model("paper").base_values["k0_N_per_m"]
+    want = 2e-4 * k0 / (k0 + kp)
+    assert res.x_specimen_m[-1] == pytest.approx(want, rel=1e-3)
+
+
 class TestUserDragContract(EffectContract):
     effect = UserDrag
 
 
 class TestUserTiltContract(EffectContract):
     effect = UserTilt
+
+
+class TestUserFlexureContract(EffectContract):
+    effect = UserFlexure

@@ -7,9 +7,9 @@ bounds, an ``off`` value at which it has no influence) and up to three hooks:
 * :meth:`Effect.on_slip_end` - update coefficients after every global slip (wear, degradation...);
 * :meth:`Effect.transform_output` - act on the recorded outputs (sensor or probe behaviour);
 
-and terms of the equations of motion: :meth:`Effect.linear_terms`, a drag on the slider and a
-coupling of the normal force linear in the slider's state, which the exact path integrates in
-closed form (:class:`LinearTerms`); and up to three plain Python functions that the engine
+and terms of the equations of motion: :meth:`Effect.linear_terms`, a drag and a spring on the
+slider and a coupling of the normal force, linear in the slider's state, which the exact path
+integrates in closed form (:class:`LinearTerms`); and up to three plain Python functions that the engine
 compiles with numba when the model is built (:mod:`rigctl.model.terms`):
 :meth:`Effect.friction_term`, :meth:`Effect.force_term` and :meth:`Effect.state_rate` (with
 :attr:`Effect.state_names`), integrated by the general path.
@@ -62,8 +62,8 @@ CORE_SLOTS: dict[str, int] = {
     "threshold_spread": layout.P_SPREAD,
     "sensor_tau_s": layout.P_TAU_S,
 }
-# (the interface's drag and the normal coupling, slots P_CINT and P_KAPPA, are not set by hooks:
-# they are the sums of the effects' LinearTerms, one way to state them)
+# (the drag, the parallel spring and the normal coupling, slots P_CINT, P_KPAR and P_KAPPA, are not
+# set by hooks: they are the sums of the effects' LinearTerms, one way to state them)
 
 
 @dataclass(frozen=True)
@@ -74,21 +74,25 @@ class LinearTerms:
     The slider's law of motion, with the drive force F_d = K0 (x_stage - X) + C0 (v_stage - V)
     (docs/model.md, section 1), becomes
 
-        M X'' = F_d - F_interface(Fn_eff) - c V,     Fn_eff = Fn + kappa K0 (x_stage - X)
+        M X'' = F_d - F_interface(Fn_eff) - c V - k_p (X - X(0)),
+        Fn_eff = Fn + kappa K0 (x_stage - X)
 
-    where c and kappa are the sums over the model's effects. Both act while the specimens are in
-    contact (they are properties of the interface: with the specimens apart the drive alone
-    moves the slider)."""
+    where c, k_p and kappa are the sums over the model's effects. The drag and the coupling act
+    while the specimens are in contact (they are properties of the interface); the spring ties the
+    slider to the frame and acts always."""
 
     damping_N_s_per_m: float = 0.0
     """c: a dashpot in parallel with the interface, the force -c V on the slider [N s/m]"""
+    stiffness_N_per_m: float = 0.0
+    """k_p: a spring from the slider to the frame (a flexure, a cable), relaxed where the slider
+    starts: the force -k_p (X - X(0)) on the slider, in contact or not [N/m]"""
     normal_per_drive_force: float = 0.0
     """kappa: the normal force the interface carries changes by kappa times the drive spring's
     force K0 (x_stage - X) (a moment arm tilting the loading frame) [-]"""
 
     def checked(self, origin: str) -> LinearTerms:
         """Itself, when every coefficient is a finite number; else SimulationError naming it."""
-        for name in ("damping_N_s_per_m", "normal_per_drive_force"):
+        for name in ("damping_N_s_per_m", "stiffness_N_per_m", "normal_per_drive_force"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not np.isfinite(v):
                 raise SimulationError(f"{origin}: linear term {name} = {v!r} is not a finite number")
@@ -167,9 +171,10 @@ class Effect:
        the model bit for bit as the model without it. At its defaults it changes something.
     3. Act on the model only through the hooks, and override only those the effect needs:
        :meth:`apply` sets the coefficients of ``core`` it owns before a run, :meth:`linear_terms`
-       declares a drag or a normal coupling linear in the slider's state, :meth:`on_slip_end`
-       updates them after every global slip, :meth:`transform_output` changes the recorded
-       outputs, :meth:`element_threshold_factors` scales the elements' static thresholds and
+       declares a drag, a spring or a normal coupling linear in the slider's state,
+       :meth:`on_slip_end` updates coefficients after every global slip,
+       :meth:`transform_output` changes the recorded outputs,
+       :meth:`element_threshold_factors` scales the elements' static thresholds and
        :meth:`initial_theta_s` sets the rate-and-state variable at the start of a run. The engine
        calls :meth:`on_slip_end` and :meth:`transform_output` only when they are overridden (a
        run without slip hooks never stops at slips, so it is faster).
@@ -247,10 +252,10 @@ class Effect:
 
     # --- terms in the equations of motion (docs/effects.md, section 3) --------------------------
     def linear_terms(self, values: Mapping[str, float]) -> LinearTerms | None:
-        """Terms linear in the slider's state (:class:`LinearTerms`: a drag -c V on the slider, a
-        normal coupling kappa) at these values, or None. The engine adds those of every effect of
-        the model into the coefficients of its exact path; zeros leave the model bit for bit as
-        without them."""
+        """Terms linear in the slider's state (:class:`LinearTerms`: a drag -c V and a spring
+        -k_p (X - X(0)) on the slider, a normal coupling kappa) at these values, or None. The
+        engine adds those of every effect of the model into the coefficients of its exact path;
+        zeros leave the model bit for bit as without them."""
         return None
 
     state_names: ClassVar[tuple[str, ...]] = ()

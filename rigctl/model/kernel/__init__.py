@@ -23,9 +23,11 @@ named in :mod:`rigctl.model.layout`. One module per concern:
 * :mod:`~rigctl.model.kernel.inputs`, :mod:`~rigctl.model.kernel.forces` - piecewise-linear inputs,
   drive force and element thresholds.
 
-Developers: numba's on-disk cache (``NUMBA_CACHE_DIR``) keys each function by its own file's time
-stamp, not by the files it calls. After editing a module here, delete the cache folder or
-also touch the modules that call it, up to ``loop.py``; otherwise ``advance`` keeps the old code.
+Developers: numba's on-disk cache (``NUMBA_CACHE_DIR``) keys each function by its own file (numba
+0.68, pinned: a hash of the file's text; older numba: its time stamp), not by the files it calls.
+After editing a module here, delete the cache folder or also change the text of the modules that
+call it, up to ``loop.py`` (touching them no longer suffices); otherwise ``advance`` keeps the old
+code.
 """
 
 from __future__ import annotations

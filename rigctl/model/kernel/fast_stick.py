@@ -49,9 +49,11 @@ from rigctl.model.layout import (
     P_CINT,
     P_K0,
     P_KAPPA,
+    P_KPAR,
     P_M,
     P_RS_B,
     P_TAU_S,
+    P_XPAR,
     S_K_USED,
     S_T,
     S_THETA,
@@ -162,7 +164,9 @@ def fast_stick_run(
         return 0
     csl = mus * spm
     kst = k * n_stuck
-    kk = k0 + kst - csl * kk0
+    kp = cp[P_KPAR]  # parallel springs (linear terms): -kp (X - X(0)), in K and F
+    kpx = kp * cp[P_XPAR]
+    kk = k0 + kst - csl * kk0 + kp
     cc = c0 + cp[P_CINT]
     disc = cc * cc - 4.0 * m * kk
     if kk <= 0.0 or disc >= 0.0:
@@ -171,7 +175,7 @@ def fast_stick_run(
     wd = math.sqrt(-disc) / (2.0 * m)
     wn = math.sqrt(kk / m)
     # particular solution X_p(tau) = a + b tau measured from t0
-    f0 = k0 * xs_start + c0 * vs - gsum - csl * (fn + kk0 * xs_start)
+    f0 = k0 * xs_start + c0 * vs - gsum - csl * (fn + kk0 * xs_start) + kpx
     f1 = k0 * vs - csl * kk0 * vs
     b = f1 / kk
     a = (f0 - cc * b) / kk
@@ -266,7 +270,7 @@ def fast_stick_run(
             q_a = mus * spm * fn
             q1 = (mus_b * spm * fn - q_a) / dt
             b = (k0 * vs - q1) / kk
-            a = (k0 * xs_a + c0 * vs - gsum - q_a - cc * b) / kk
+            a = (k0 * xs_a + c0 * vs - gsum - q_a + kpx - cc * b) / kk
             u = fs[S_X] - a
             du = fs[S_V] - b
             amp = math.sqrt(u * u + ((du + sig * u) / wd) ** 2)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rigctl.model.layout import P_C0, P_K0, P_KAPPA
+from rigctl.model.layout import P_C0, P_K0, P_KAPPA, P_KPAR, P_XPAR
 
 
 @njit(cache=True)
@@ -13,6 +13,17 @@ def drive_force(cp: np.ndarray, xs: float, vs: float, x: float, v: float) -> flo
     """Force in the drive spring and damper, what the force sensor in the drive path carries:
     K0 (x_stage - X) + C0 (v_stage - V) (docs/model.md, section 1)."""
     return cp[P_K0] * (xs - x) + cp[P_C0] * (vs - v)
+
+
+@njit(cache=True)
+def parallel_spring_force(cp: np.ndarray, x: float) -> float:
+    """Force on the slider of the springs that effects declare as linear terms, -k_p (X - X(0)):
+    springs from the slider to the frame, relaxed where the slider starts (docs/model.md,
+    section 3, "Linear terms"); 0 when there are none."""
+    kp = cp[P_KPAR]
+    if kp == 0.0:
+        return 0.0
+    return -kp * (x - cp[P_XPAR])
 
 
 @njit(cache=True)

@@ -13,8 +13,10 @@ from rigctl.model.layout import (
     I_STAGE,
     P_C0,
     P_K0,
+    P_KPAR,
     P_M,
     P_TAU_S,
+    P_XPAR,
     S_K_USED,
     S_T,
     S_THETA,
@@ -37,7 +39,8 @@ def free_step(
     seg: Segment,
     h: float,
 ) -> bool:
-    """Advance by h with the specimens apart: the drive alone moves the specimen, exactly.
+    """Advance by h with the specimens apart: the drive alone moves the specimen, exactly (with
+    the parallel springs of linear terms, which tie the slider to the frame, not to the interface).
 
     Every element is left stuck and unloaded, so contact resumes with a fresh interface.
     Returns whether a running global slip was closed.
@@ -49,7 +52,9 @@ def free_step(
         ended = True
     k0 = cp[P_K0]
     c0 = cp[P_C0]
-    sol = modal_solution(cp[P_M], c0, k0, k0 * xs0 + c0 * vs, k0 * vs, fs[S_X], fs[S_V])
+    kp = cp[P_KPAR]
+    sol = modal_solution(cp[P_M], c0, k0 + kp, k0 * xs0 + c0 * vs + kp * cp[P_XPAR], k0 * vs,
+                         fs[S_X], fs[S_V])
     if cp[P_TAU_S] > 0.0:
         fs[S_YF] = filtered_drive_force(fs[S_YF], 1.0 / cp[P_TAU_S], k0, c0, xs0, vs, sol, h)
     fs[S_X] = position(sol, h)

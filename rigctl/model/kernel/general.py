@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from rigctl.model.friction_laws import element_stiffness, mu_static
-from rigctl.model.kernel.forces import drive_force
+from rigctl.model.kernel.forces import drive_force, parallel_spring_force
 from rigctl.model.kernel.free_step import free_step
 from rigctl.model.kernel.global_slip import (
     end_global_slip,
@@ -121,7 +121,8 @@ def state_rates(terms: Any, x: float, v: float, t: float, fn: float, z: np.ndarr
 def _rhs(cp: np.ndarray, terms: Any, gslip: bool, sign: int, stage: int, gsum: float,
          kst: float, spm: float, t: float, xs: float, vs: float, fn: float, x: float, v: float,
          th: float, e: float, z: np.ndarray, dz: np.ndarray) -> tuple[float, float, float]:
-    """(V', theta', e') and dz/dt: Newton's law M X'' = F_drive - F_interface - c_i V + F_plugins.
+    """(V', theta', e') and dz/dt: Newton's law
+    M X'' = F_drive - F_interface - c_i V - k_p (X - X(0)) + F_plugins.
 
     Stuck elements carry g_i + k X (their sum gsum + kst X), presliding ones their static
     threshold mu_s,eff P_i m_i Fn_eff (spm sums mode_i P_i m_i), a global slip sign mu_k,eff
@@ -139,7 +140,8 @@ def _rhs(cp: np.ndarray, terms: Any, gslip: bool, sign: int, stage: int, gsum: f
         if spm != 0.0:
             mus = friction_chain(terms, mu_static(cp, stage, fn, th), x, v, t, fe, 0.0, z)
             fi += mus * spm * fe
-    acc = (fd - cp[P_CINT] * v - fi + plugin_force(terms, x, v, t, fe, z)) / cp[P_M]
+    acc = (fd - cp[P_CINT] * v - fi + plugin_force(terms, x, v, t, fe, z)
+           + parallel_spring_force(cp, x)) / cp[P_M]
     state_rates(terms, x, v, t, fe, z, dz)
     return acc, dth, de
 

@@ -29,8 +29,10 @@ from rigctl.model.layout import (
     P_CINT,
     P_K0,
     P_KAPPA,
+    P_KPAR,
     P_M,
     P_TAU_S,
+    P_XPAR,
     S_K_USED,
     S_T,
     S_THETA,
@@ -185,12 +187,13 @@ def linear_step(
             cslh = mu_static(cp, stage, fn0 + fn1 * h, th0 + h) * spm
 
     kst = k * n_stuck
-    kk = k0 + kst - csl0 * kk0
+    kp = cp[P_KPAR]  # parallel springs (linear terms): -kp (X - X(0)), in K and F
+    kk = k0 + kst - csl0 * kk0 + kp
     cc = c0 + cp[P_CINT]
     q0 = csl0 * (fn0 + kk0 * xs0)
     qh = cslh * (fn0 + fn1 * h + kk0 * (xs0 + vs * h))
     q1 = (qh - q0) / h if h > 0.0 else 0.0
-    f0 = k0 * xs0 + c0 * vs - gsum - q0
+    f0 = k0 * xs0 + c0 * vs - gsum - q0 + kp * cp[P_XPAR]
     f1 = k0 * vs - q1
     sol = modal_solution(m, cc, kk, f0, f1, x0, v0)
 

@@ -2,7 +2,10 @@
 
 The step: the fast stick recurrence where it applies (constant inputs, no event possible before the
 next sample), the free step with the specimens apart, RK4 for a global slip with
-velocity/state-dependent friction, otherwise the exact linear step.
+velocity/state-dependent friction, otherwise the exact linear step. Every step reads the terms
+linear in the slider's state that effects declare (:class:`rigctl.model.effects.base.LinearTerms`:
+the drag ``P_CINT``, the parallel spring ``P_KPAR`` relaxed at ``P_XPAR``, the normal coupling
+``P_KAPPA``) from the coefficient vector, so a model with them keeps this loop.
 """
 
 from __future__ import annotations

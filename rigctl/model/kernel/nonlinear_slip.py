@@ -22,7 +22,7 @@ from rigctl.model.friction_laws import (
     stribeck_shape,
 )
 from rigctl.model.kernel.event_search import BISECT_ITERS
-from rigctl.model.kernel.forces import drive_force
+from rigctl.model.kernel.forces import drive_force, parallel_spring_force
 from rigctl.model.kernel.global_slip import end_global_slip, note_slip_force, note_slip_speed
 from rigctl.model.kernel.inputs import Segment
 from rigctl.model.layout import (
@@ -129,7 +129,7 @@ def slip_rhs(
     fe = fn + cp[P_KAPPA] * k0 * (xs - x)
     fd = drive_force(cp, xs, vs, x, v)
     mu, dth, de = slip_friction(cp, fn, fe, abs(v), th, e)
-    acc = (fd - cp[P_CINT] * v - sign * mu * fe) / cp[P_M]
+    acc = (fd - cp[P_CINT] * v - sign * mu * fe + parallel_spring_force(cp, x)) / cp[P_M]
     dy = 0.0
     if cp[P_TAU_S] > 0.0:
         dy = (fd - y) / cp[P_TAU_S]
