@@ -16,7 +16,8 @@ kernel's vector (``built_in``: what their ``apply`` hooks did before they moved)
 the same runs: CPU seconds, ``<effect>_api_speed_vs_built_in`` (target >= 0.5) and the largest
 |Ft| and |Fn| differences (0: the same bits). Both on the slide above and on the slide-hold-slide
 below; the drag also as a plug-in force term on the general path, for the ratio a function term
-would give.
+would give, and a user's parallel spring -k_p (X - X(0)) as a linear term against the same spring
+as a force term (``spring_linear_speed_vs_force_term``, max |dFt| between them).
 
 ``--library`` adds what moving a library effect onto the function terms would cost today:
 ``rate_state`` and ``presliding`` on their own paths (exact stick, RK4 only in ``rate_state``'s
@@ -32,12 +33,12 @@ import json
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
-from rigctl.model import Drive, Effect, ParamSpec, Simulator, build_model, layout
+from rigctl.model import Drive, Effect, LinearTerms, ParamSpec, Simulator, build_model, layout
 from rigctl.model.effects import LIBRARY
 
 C_N_S_PER_M = 30.0
@@ -61,6 +62,36 @@ class PluginDrag(Effect):
     @staticmethod
     def force_term() -> Callable[..., Any]:
         return _drag
+
+
+def _spring(p: np.ndarray, x: float, v: float, t: float, fn: float, z: np.ndarray) -> float:
+    return -p[0] * x  # the benchmark's drives start at X(0) = 0
+
+
+SPRING_PARAMS = (ParamSpec("k_N_per_m", 2e5, 0.0, 1e7, "N/m", "parallel spring", off=0.0),)
+
+
+class ForceTermSpring(Effect):
+    name = "bench_spring_force_term"
+    summary = "a parallel spring -k_p X as a plug-in force term (general path)"
+    signature = "peaks grow with the distance slid"
+    reveal_protocol = "any"
+    params = SPRING_PARAMS
+
+    @staticmethod
+    def force_term() -> Callable[..., Any]:
+        return _spring
+
+
+class LinearSpring(Effect):
+    name = "bench_spring_linear"
+    summary = "the same spring as a linear term (exact path)"
+    signature = "peaks grow with the distance slid"
+    reveal_protocol = "any"
+    params = SPRING_PARAMS
+
+    def linear_terms(self, values: Mapping[str, float]) -> LinearTerms:
+        return LinearTerms(stiffness_N_per_m=values["k_N_per_m"])
 
 
 class NoForce(Effect):
@@ -140,6 +171,14 @@ def measure_linear_moves(duration_s: float = 3.0, repeats: int = 3) -> dict[str,
     out["interface_damping_slide_as_force_term_cpu_s"] = t_plugin
     out["interface_damping_slide_force_term_speed_vs_built_in"] = (
         out["interface_damping_slide_built_in_cpu_s"] / t_plugin)
+    lin = Simulator(build_model("paper", effects=[LinearSpring]))
+    ft = Simulator(build_model("paper", effects=[ForceTermSpring]))
+    out["spring_linear_cpu_s"] = _cpu_s(lin, drives["slide"], repeats)
+    out["spring_force_term_cpu_s"] = _cpu_s(ft, drives["slide"], 3)
+    out["spring_linear_speed_vs_force_term"] = (out["spring_force_term_cpu_s"]
+                                                / out["spring_linear_cpu_s"])
+    out["spring_linear_vs_force_term_max_ft_difference_N"] = float(np.max(np.abs(
+        lin.run(drives["slide"]).ft_N - ft.run(drives["slide"]).ft_N)))
     return out
 
 
