@@ -76,8 +76,8 @@ def run_case(i: int, seed: int, workers: int, short: bool) -> dict[str, Any]:
 
         t0 = time.perf_counter()
         ranked = screen_sets(ds, base, pool, screen=fit)
-        res["short"] = {**_summary([e for e, _ in ranked], [x for _, x in ranked], hidden,
-                                   base.error),
+        res["short"] = {**_summary([s.effects for s in ranked], [s.error for s in ranked],
+                                   hidden, base.error),
                         "evaluations": short_budget.used,
                         "wall_s": round(time.perf_counter() - t0, 1)}
     return res

@@ -29,7 +29,8 @@ A set's screened error is the lowest profiled cost over its points (the model it
 a set that helps nowhere screens at the model's error), as an error E (|r|^2 = n E^2, n fixed by
 the model's own pair). Every screened cost is that of an evaluated residual; only the base's
 re-fit is linear. Costs: 1 + SPREAD_POINTS + about 1-3 evaluations per on-coordinate + 1 per set,
-against a short search's tens.
+against a short search's tens. The point where it was found, with the base moved by the damped
+Gauss-Newton step the profile assumes, is the set's start for its full fit (:attr:`Screened.start`).
 """
 
 from __future__ import annotations
@@ -76,6 +77,11 @@ class Screened:
     evaluations: int
     best_at: str
     """Where the screened error was found: ``off``, ``score step`` or ``spread point``."""
+    start: ModelChoice | None = None
+    """The model with the set added at the point where the screened error was found, its base
+    moved by the linear re-fit that point's profile assumes (:meth:`BaseMetric.step`): a start for
+    the set's full fit, so that the fit begins where the screen saw its gain (None where that
+    point is the model itself, which every fit starts from)."""
 
 
 def base_basis(jacobian: FloatArray) -> FloatArray:
@@ -93,6 +99,35 @@ def profiled_cost(r: FloatArray, Q: FloatArray) -> float:
     """|r - Q Q^T r|^2: the cost of residual ``r`` after a Gauss-Newton step over the base."""
     rp = r - Q @ (Q.T @ r)
     return float(rp @ rp)
+
+
+@dataclass(frozen=True)
+class BaseMetric:
+    """The model's own Jacobian J_b at its values (columns: the base coordinates ``names``) and
+    the orthonormal basis Q of its columns."""
+
+    J: FloatArray
+    names: tuple[str, ...]
+    Q: FloatArray
+
+    @classmethod
+    def of(cls, J: FloatArray, names: Sequence[str]) -> BaseMetric:
+        return cls(np.nan_to_num(np.asarray(J, dtype=np.float64)), tuple(names), base_basis(J))
+
+    def step(self, r: FloatArray, space: SearchSpace) -> dict[int, float]:
+        """The damped Gauss-Newton step over the base from residual ``r``, by coordinate of
+        ``space``: (J_b^T J_b + S^-1) d = -J_b^T r with the space's prior spreads s, as the
+        search's metric stage steps (the linear re-fit the profile assumes, damped where the data
+        do not determine a direction). Coordinates of ``names`` that ``space`` lacks are left."""
+        index = {fp.name: i for i, fp in enumerate(space.free)}
+        cols = [k for k, n in enumerate(self.names) if n in index]
+        if not cols:
+            return {}
+        J = self.J[:, cols]
+        at = [index[self.names[k]] for k in cols]
+        prior = np.diag(1.0 / space.std[at] ** 2)
+        d = -np.linalg.solve(J.T @ J + prior, J.T @ np.nan_to_num(r))
+        return {i: float(v) for i, v in zip(at, d, strict=True)}
 
 
 def _effect_coordinates(space: SearchSpace, effects: Sequence[str], count_new: bool) -> list[int]:
@@ -119,8 +154,8 @@ class _SetScreen:
         self.base = [i for i in range(len(self.space.free)) if i not in self.coords]
         self.budget, self.workers = budget, workers
 
-    def run(self, Q: FloatArray | None, say: Say) -> tuple[Screened, FloatArray | None]:
-        """The set's screen, and the base basis Q (computed here where not given)."""
+    def run(self, metric: BaseMetric | None, say: Say) -> tuple[Screened, BaseMetric | None]:
+        """The set's screen, and the base's metric (computed here where not given)."""
         used = self.budget.used
         with EvaluationPool(self.dataset, self.choice, self.space.free, self.budget,
                             self.workers) as pool:
@@ -130,13 +165,17 @@ class _SetScreen:
             o0 = outcomes[0]
             if o0.status != OK or o0.vector is None:
                 say(f"  screened {' + '.join(self.effects)}: the model itself cannot be run")
-                return Screened(self.effects, math.inf, 0.0, self.budget.used - used, "off"), Q
+                return (Screened(self.effects, math.inf, 0.0, self.budget.used - used, "off"),
+                        metric)
             r0 = o0.vector
-            if Q is None or Q.shape[0] != r0.shape[0]:
+            if metric is None or metric.Q.shape[0] != r0.shape[0]:
                 search.cols = self.base
-                Q = base_basis(search.jacobian(self.x0, r0)[:, self.base])
-            found = [(profiled_cost(r0, Q), "off")]
-            found += [(profiled_cost(o.vector, Q), "spread point") for o in outcomes[1:]
+                metric = BaseMetric.of(search.jacobian(self.x0, r0)[:, self.base],
+                                       [self.space.free[i].name for i in self.base])
+            Q = metric.Q
+            found = [(profiled_cost(r0, Q), "off", self.x0, r0)]
+            found += [(profiled_cost(o.vector, Q), "spread point", x, o.vector)
+                      for x, o in zip(spread, outcomes[1:], strict=True)
                       if o.status == OK and o.vector is not None]
             score = 0.0
             if self.on:
@@ -152,14 +191,24 @@ class _SetScreen:
                 x[self.on] += d
                 (o,) = search.evaluate([x])
                 if o.status == OK and o.vector is not None:
-                    found.append((profiled_cost(o.vector, Q), "score step"))
-        cost, where = min(found)
+                    found.append((profiled_cost(o.vector, Q), "score step", x, o.vector))
+        cost, where, x_at, r_at = min(found, key=lambda f: f[0])
         n0 = float(r0 @ r0)
         error = self.model.error * math.sqrt(cost / n0) if n0 > 0.0 else self.model.error
-        out = Screened(self.effects, error, score, self.budget.used - used, where)
+        start = None if where == "off" else self._start(x_at, r_at, metric)
+        out = Screened(self.effects, error, score, self.budget.used - used, where, start)
         say(f"  screened {' + '.join(self.effects)}: {error:.3g} (score {score:.3g}, best at "
             f"the {where}, {out.evaluations} evaluations)")
-        return out, Q
+        return out, metric
+
+    def _start(self, x: FloatArray, r: FloatArray, metric: BaseMetric) -> ModelChoice:
+        """The set's point ``x`` (residual ``r``) with the base moved by the linear re-fit: where
+        the screened error was found, as a start for the full fit."""
+        x = x.copy()
+        for i, d in metric.step(r, self.space).items():
+            x[i] += d
+        x = np.clip(x, self.space.lower, self.space.upper)
+        return self.choice.with_values(self.space.values(x))
 
     def _spread_points(self) -> list[FloatArray]:
         idx = [i for i in self.coords if i in self.space.spread]
@@ -179,12 +228,13 @@ def score_screen(
     no evaluation limit is applied."""
     budget = budget or Budget()
     n_workers = default_workers() if workers is None else workers
-    Q: FloatArray | None = None
-    if model.jacobian is not None and model.jacobian.size:
-        Q = base_basis(model.jacobian)
+    metric: BaseMetric | None = None
+    if model.jacobian is not None and model.jacobian.size and \
+            model.jacobian.shape[1] == len(model.free):
+        metric = BaseMetric.of(model.jacobian, model.free)
     out = []
     for effects in sets:
         one = _SetScreen(dataset, model, tuple(effects), budget, n_workers, seed)
-        screened, Q = one.run(Q, say)
+        screened, metric = one.run(metric, say)
         out.append(screened)
     return sorted(out, key=lambda s: (s.error, -s.score))

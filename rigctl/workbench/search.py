@@ -49,7 +49,9 @@ everything: evaluations and/or wall seconds, cancel, progress with an ETA.
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 
 import cma
@@ -130,8 +132,15 @@ def search_model(
     with_uncertainty: bool = True,
     seed: int = 1,
     progress: Progress | None = None,
+    starts: Sequence[ModelChoice] = (),
+    cancel: threading.Event | None = None,
 ) -> FitResult:
     """Identify ``choice`` on ``dataset`` by the one search (module docstring).
+
+    ``starts``: more starts, the same model at other values (a screen's best point of the
+    effects being added, :class:`~rigctl.workbench.screening.Screened`), ranked with the others.
+    ``cancel``: an event that cancels the search as the budget's own does (one event shared by
+    the searches of a longer run: a diagnose's Cancel).
 
     ``budget``: evaluations and/or seconds (default: :func:`default_budget`, a cap: the search
     ends where it stops gaining); ``workers``: worker processes evaluating a batch of points
@@ -158,10 +167,12 @@ def search_model(
     budget = budget or default_budget(space.dim)
     if budget.progress is None:
         budget.progress = progress
+    if cancel is not None:
+        budget.cancel_event = cancel
     n_workers = default_workers() if workers is None else workers
     with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
         search = SearchState(space, pool, budget, seed, with_uncertainty)
-        search.starts([choice, *([scaled] if scaled is not None else [])])
+        search.starts([choice, *([scaled] if scaled is not None else []), *starts])
         search.metric()
         search.cma()
         search.polish()

@@ -15,10 +15,14 @@ One step:
    on.
 2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
    ``SCREEN_KEEP`` pairs go on.
-3. **Fit** the kept sets fully (``fit``) and score each against the model
-   (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as the
-   samples, at least 10 % of the error, E^2 down by 0.5).
-4. **Add** the best significant single; a pair instead only where it is significant against that
+3. **Gate**: where no screened set is significant against the model by the rule below
+   (:func:`promising`), the step ends there: a set's screened error is that of a point the
+   screen evaluated, so a set the full fit would find significant almost always screens so too.
+4. **Fit** the kept sets fully (``fit``), each also from the point where its screen found its
+   error (so a fit does not end worse than what the screen saw), and score each against the
+   model (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as
+   the samples, at least 10 % of the error, E^2 down by 0.5).
+5. **Add** the best significant single; a pair instead only where it is significant against that
    single (or against the model, where no single is): forward selection takes two effects at once
    only where the data demand both.
 
@@ -28,9 +32,9 @@ whose removal is not significantly worse by the same rule goes, the weakest firs
 effect left earns its place. Forward and backward use one rule, so a model the procedure returns
 is one from which no single addition or removal is significant.
 
-Everything that fits or screens is injected (``fit``: ``(dataset, choice) -> FitResult``;
-``screen``: ``(dataset, model, sets) -> [(set, error)]``), so the procedure is independent of how one
-model is identified (:mod:`rigctl.workbench.search`).
+Everything that fits or screens is injected (``fit``: ``(dataset, choice, starts=) ->
+FitResult``; ``screen``: ``(dataset, model, sets) -> [Screened]``), so the procedure is
+independent of how one model is identified (:mod:`rigctl.workbench.search`).
 """
 
 from __future__ import annotations
@@ -39,17 +43,33 @@ import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult
-from rigctl.workbench.model_choice import ModelChoice, with_effects, without_effect
+from rigctl.workbench.model_choice import (
+    ModelChoice,
+    effect_class,
+    with_effects,
+    without_effect,
+)
 from rigctl.workbench.ranking import CandidateScore, score_candidate
+from rigctl.workbench.screening import Screened
 
-FitFn = Callable[[Dataset, ModelChoice], FitResult]
-"""Identify one model on a dataset (its current values are the search's start)."""
-ScreenFn = Callable[[Dataset, FitResult, Sequence[tuple[str, ...]]],
-                    list[tuple[tuple[str, ...], float]]]
-"""Screen effect sets added to a fitted model: each set and its screened error, best first."""
+
+class FitFn(Protocol):
+    """Identify one model on a dataset: its current values are the search's start, ``starts``
+    the same model at other values (a screen's best point) are more."""
+
+    def __call__(self, dataset: Dataset, choice: ModelChoice, /, *,
+                 starts: Sequence[ModelChoice] = ()) -> FitResult: ...
+
+
+ScreenFn = Callable[[Dataset, FitResult, Sequence[tuple[str, ...]]], list[Screened]]
+"""Screen effect sets added to a fitted model: each set's screen (its error and best point), best
+first."""
+ShortFitFn = Callable[[Dataset, ModelChoice], FitResult]
+"""A short fit of one model (:func:`by_short_fits`)."""
 ErrorFn = Callable[[Dataset, ModelChoice], float]
 """The error of one model on a dataset at its values (one evaluation, no fit)."""
 Say = Callable[[str], None]
@@ -97,14 +117,26 @@ class Step:
     model: FitResult
 
 
+@dataclass(frozen=True)
+class Round:
+    """One forward step's evidence: the model it started from, every screen (singles and pairs,
+    best first), the sets fitted fully (none where no screen was significant) and the set added
+    (None: nothing significant, or the model refitted and the step repeated)."""
+
+    model: FitResult
+    screens: list[Screened]
+    trials: list[Trial]
+    chosen: Trial | None
+
+
 @dataclass
 class Selection:
-    """The outcome: the model at each step, and every round's trials (for the ranking tables)."""
+    """The outcome: the model at each step, and every round's evidence (the ranking tables)."""
 
     base: FitResult
     final: FitResult
     steps: list[Step] = field(default_factory=list)
-    rounds: list[list[Trial]] = field(default_factory=list)
+    rounds: list[Round] = field(default_factory=list)
 
 
 def _score(name: str, base: FitResult, cand: FitResult, n_events: int) -> CandidateScore:
@@ -116,52 +148,84 @@ def _finite(e: float) -> float:
 
 
 def screen_sets(
-    dataset: Dataset, model: FitResult, sets: Sequence[tuple[str, ...]], *, screen: FitFn,
+    dataset: Dataset, model: FitResult, sets: Sequence[tuple[str, ...]], *, screen: ShortFitFn,
     say: Say = lambda _m: None,
-) -> list[tuple[tuple[str, ...], float]]:
-    """Each effect set added to ``model`` and fitted by the short fit ``screen``: the sets and
-    their errors, best first (a fit that fails ranks last). The first SCREEN_KEEP are the ones a
-    forward step fits fully."""
+) -> list[Screened]:
+    """Each effect set added to ``model`` and fitted by the short fit ``screen``: the sets'
+    screens (error, and the short fit's end as the full fit's start), best first (a fit that fails
+    ranks last). The first SCREEN_KEEP are the ones a forward step fits fully."""
 
-    def short(effects: tuple[str, ...]) -> tuple[tuple[str, ...], float]:
+    def short(effects: tuple[str, ...]) -> Screened:
         res = screen(dataset, with_effects(model.choice, effects))
         say(f"  screened {' + '.join(effects)}: {res.error:.3g}")
-        return effects, _finite(res.error)
+        return Screened(effects, _finite(res.error), 0.0, res.n_evaluations, "short fit",
+                        res.choice if math.isfinite(res.error) else None)
 
-    return sorted((short(s) for s in sets), key=lambda s: s[1])
+    return sorted((short(s) for s in sets), key=lambda s: s.error)
 
 
-def by_short_fits(short_fit: FitFn, say: Say = lambda _m: None) -> ScreenFn:
+def by_short_fits(short_fit: ShortFitFn, say: Say = lambda _m: None) -> ScreenFn:
     """A screen that fits each set with ``short_fit`` (:func:`screen_sets`)."""
     return lambda dataset, model, sets: screen_sets(dataset, model, sets, screen=short_fit,
                                                     say=say)
 
 
+def promising(model: FitResult, screens: Sequence[Screened], n_events: int) -> bool:
+    """Whether any screened set is significant against ``model`` by the rule a fit is judged by.
+
+    A set's screened error is that of a point the screen evaluated (its base re-fitted linearly),
+    and the set's full fit starts there: it is about what the fit reaches at worst. Where no set
+    screens significant, a full fit would have to find a gain none of the screen's points shows
+    (an effect whose gain lies outside its plausible ranges, or that needs the base to move far
+    from the model), which is the screen's miss: the step ends without fitting, as a step whose
+    fits found nothing significant would."""
+    return any(
+        score_candidate(" + ".join(s.effects), model.error, s.error, n_events,
+                        _n_new(model, s)).significant
+        for s in screens if math.isfinite(s.error))
+
+
+def _n_new(model: FitResult, s: Screened) -> int:
+    """Parameters the set adds: its effects' identified parameters (at least one each)."""
+    n = 0
+    for effect in s.effects:
+        cls = effect_class(effect, model.choice.effect_files)
+        n += max(1, sum(1 for p in cls.params if p.identify)) if cls is not None else 1
+    return n
+
+
 def forward_step(
     dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
     say: Say,
-) -> tuple[Trial | None, list[Trial]]:
-    """One forward step from ``model``: the set to add (None: nothing significant) and the trials.
-    """
+) -> tuple[Trial | None, list[Trial], list[Screened]]:
+    """One forward step from ``model``: the set to add (None: nothing significant), the trials
+    (none where no screened set is :func:`promising`) and every screen."""
     n = dataset.n_events
     singles = screen(dataset, model, [(c,) for c in pool])
-    pair_sets = [tuple(sorted((a[0][0], b[0][0])))
+    pair_sets = [tuple(sorted((a.effects[0], b.effects[0])))
                  for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
     pairs = screen(dataset, model, pair_sets)
+    screens = sorted([*singles, *pairs], key=lambda s: s.error)
+    if not promising(model, screens, n):
+        say(f"  no screened set is significant against {model.choice.label()} "
+            f"({model.error:.3g}; best {screens[0].error:.3g})" if screens else
+            "  nothing to screen")
+        return None, [], screens
     trials: list[Trial] = []
-    for effects, e_screen in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
-        res = fit(dataset, with_effects(model.choice, effects))
-        name = " + ".join(effects)
+    for s in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
+        res = fit(dataset, with_effects(model.choice, s.effects),
+                  starts=() if s.start is None else (s.start,))
+        name = " + ".join(s.effects)
         say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}")
-        trials.append(Trial(effects, res, _score(name, model, res, n), e_screen))
+        trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
     trials.sort(key=lambda t: _finite(t.fit.error))
     best_single = next((t for t in trials if len(t.effects) == 1 and t.score.significant), None)
     best_pair = next((t for t in trials if len(t.effects) == 2 and t.score.significant), None)
     if best_pair is not None:
         against = best_single.fit if best_single is not None else model
         if _score(best_pair.name, against, best_pair.fit, n).significant:
-            return best_pair, trials
-    return best_single, trials
+            return best_pair, trials, screens
+    return best_single, trials, screens
 
 
 def backward_elimination(
@@ -228,13 +292,14 @@ def select_effects(
     while steps < max_steps:
         if not pool:
             break
-        chosen, trials = forward_step(dataset, model, pool, fit=fit, screen=screen, say=say)
-        sel.rounds.append(trials)
+        chosen, trials, screens = forward_step(dataset, model, pool, fit=fit, screen=screen,
+                                               say=say)
         again = None if error_of is None else unfinished_model(dataset, model, trials,
                                                                 error_of=error_of)
         if again is not None:
             refit = fit(dataset, again)
             if refit.error < model.error:
+                sel.rounds.append(Round(model, screens, trials, None))
                 say(f"{model.choice.label()} fits better from a trial's values without its "
                     f"effects: {model.error:.3g} -> {refit.error:.3g}; the step again")
                 sc = score_candidate("refit", model.error, refit.error, dataset.n_events, 0)
@@ -242,6 +307,7 @@ def select_effects(
                 model = refit
                 continue
         steps += 1
+        sel.rounds.append(Round(model, screens, trials, chosen))
         if chosen is None:
             break
         say(f"adding {chosen.name}: {model.error:.3g} -> {chosen.fit.error:.3g}")

@@ -14,8 +14,9 @@ from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench import selection as sel
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
+from rigctl.workbench.fitting import error_or_inf
 from rigctl.workbench.identify import FitResult, fn_range, physically_valid
-from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.model_choice import ModelChoice, with_effects
 from rigctl.workbench.screening import base_basis, profiled_cost, score_screen
 from rigctl.workbench.search import search_model
 from tests.workbench.hidden import DECOYS, MAGNITUDE, TEST_BASE, scaled_values
@@ -67,6 +68,14 @@ def test_the_hidden_effect_screens_first_at_a_fraction_of_a_short_fit():
     assert all(s.evaluations < SHORT_FIT_EVALUATIONS / 3 for s in out if s.effects != sets[0])
     # a set that helps nowhere screens at the model's own error, re-fitted linearly
     assert all(s.error <= base.error * (1 + 1e-9) for s in out)
+    # the best point is a start for the set's full fit, which cannot end worse than it
+    start = out[0].start
+    assert start is not None and start.effects == (*base.choice.effects, hidden)
+    e_start = error_or_inf(dataset, start, fn_range(dataset))
+    assert out[0].error <= e_start  # the screened error has the base re-fitted linearly
+    fit = search_model(dataset, with_effects(base.choice, (hidden,)), starts=(start,),
+                       budget=Budget(max_evaluations=30), workers=1, with_uncertainty=False)
+    assert fit.error <= e_start * (1 + 1e-9)
 
 
 @pytest.mark.slow  # a short base fit and six screens per case: about 5 s each

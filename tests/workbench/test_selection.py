@@ -3,7 +3,7 @@ by a table of errors: what is under test is which sets are screened, fitted, add
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from types import SimpleNamespace
 from typing import Any, cast
 
@@ -33,6 +33,8 @@ class Table:
         self.screen_offset = screen_offset
         self.fitted: list[frozenset[str]] = []
         self.screened: list[frozenset[str]] = []
+        self.starts: dict[frozenset[str], tuple[ModelChoice, ...]] = {}
+        """The extra starts each full fit was given."""
 
     def _result(self, choice: ModelChoice, error: float) -> FitResult:
         free = ("mu_s", "mu_k", *(f"{e}.p" for e in choice.effects))
@@ -40,9 +42,11 @@ class Table:
             choice = choice.with_values({"warm": 1.0})
         return FitResult(choice, error, {}, free)
 
-    def fit(self, _ds: Any, choice: ModelChoice) -> FitResult:
+    def fit(self, _ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()
+            ) -> FitResult:
         key = frozenset(choice.effects)
         self.fitted.append(key)
+        self.starts[key] = tuple(starts)
         if "warm" in choice.values and key in self.warm_errors:
             return self._result(choice, self.warm_errors[key])
         return self._result(choice, self.errors.get(key, self.errors[frozenset()]))
@@ -129,6 +133,30 @@ def test_nothing_is_added_when_nothing_is_significant():
     assert len(out.rounds) == 1
 
 
+def test_no_set_is_fitted_fully_when_no_screen_is_significant():
+    # the short fits see at most 5 % of the error (not significant): the step ends unfitted,
+    # although "a" fitted fully would have been (the screen's miss, the gate's price)
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.6}, screen_errors={S("a"): 9.5})
+    out = _select(t)
+    assert t.fitted == [] and out.steps == [] and out.final is out.base
+    assert [r.trials for r in out.rounds] == [[]] and out.rounds[0].chosen is None
+    assert {s.effects for s in out.rounds[0].screens} >= {("a",), ("b",)}
+
+
+def test_one_significant_screen_opens_the_full_fits_of_the_kept_sets():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.6, S("c"): 9.7}, screen_errors={S("a"): 8.0})
+    out = _select(t)
+    assert {S("a"), S("b"), S("c")} <= set(t.fitted)
+    assert out.steps[0].effects == ("a",)
+
+
+def test_each_full_fit_also_starts_where_its_screen_ended():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0})
+    _select(t)
+    starts = t.starts[S("a")]
+    assert len(starts) == 1 and starts[0].effects == ("a",)
+
+
 @pytest.mark.parametrize("effects", [("a",), ("a", "b")])
 def test_with_and_without_effects_round_trip(effects):
     choice = sel.with_effects(ModelChoice("paper"), effects).with_values({"a.p": 1.0, "mu_s": 0.2})
@@ -151,11 +179,12 @@ class Unfinished(Table):
             res = FitResult(res.choice.with_values({"at_trial": 1.0}), res.error, {}, res.free)
         return res
 
-    def fit(self, ds: Any, choice: ModelChoice) -> FitResult:
+    def fit(self, ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()
+            ) -> FitResult:
         if not choice.effects and "at_trial" in choice.values:  # the base refitted from there
             self.fitted.append(frozenset())
             return FitResult(choice, self.finished, {}, ("mu_s", "mu_k"))
-        return super().fit(ds, choice)
+        return super().fit(ds, choice, starts=starts)
 
     def error_of(self, _ds: Any, choice: ModelChoice) -> float:
         self.evaluated.append(choice)

@@ -40,5 +40,5 @@ def test_the_screen_keeps_the_hidden_effect():
     pool = [hidden, *DECOYS[hidden], "stribeck", "presliding"]
     assert len(pool) == 2 * sel.SCREEN_KEEP
     ranked = sel.screen_sets(dataset, base, [(c,) for c in pool], screen=_short_fit)
-    kept = [effects for effects, _ in ranked[: sel.SCREEN_KEEP]]
+    kept = [s.effects for s in ranked[: sel.SCREEN_KEEP]]
     assert (hidden,) in kept, ranked
