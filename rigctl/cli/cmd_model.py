@@ -221,6 +221,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
             raise UsageError(f"unknown candidate '{name}' (known: {', '.join(sorted(known))})")
     if not candidates:
         raise UsageError("no candidate effects left to try")
+    if args.auto and args.scheduler:
+        raise UsageError("--auto runs its searches on this machine's worker processes "
+                         "(--workers); --scheduler serves the ranking without --auto")
     if args.report:
         check_output_folder(args.report, "--report")
     runs = _load(args)

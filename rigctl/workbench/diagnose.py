@@ -1,10 +1,10 @@
-"""Learn what is missing: fit every candidate effect, rank by evidence, optionally add and repeat.
+"""Learn what is missing: fit every candidate effect, rank by evidence; or choose the effects.
 
 :func:`diagnose` identifies the model on the campaign, fits base + each candidate effect in parallel
 (:mod:`rigctl.workbench.parallel`), ranks them (:mod:`rigctl.workbench.ranking`) and explains each
-by the residual structure it removes (:mod:`rigctl.workbench.residual_map`). With ``auto`` the best
-significant effect is added, the model re-identified, and the round repeated until nothing
-significant is left; every step's error is kept for the error-fall chart.
+by the residual structure it removes (:mod:`rigctl.workbench.residual_map`). With ``auto`` it
+chooses the model's effects by forward selection and backward elimination over the one search
+(:mod:`rigctl.workbench.auto_diagnosis`); every step's error is kept for the error-fall chart.
 """
 
 from __future__ import annotations
@@ -18,19 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from rigctl.errors import SimulationError
-from rigctl.model import MAX_NORMAL_FORCE_N, ParameterError
+from rigctl.model import MAX_NORMAL_FORCE_N
 from rigctl.records.dataset import Dataset, protocols_present
 from rigctl.records.drive_profile import DriveProfile
 from rigctl.records.feature_info import FEATURES
-from rigctl.workbench.element_count import best_element_count
 from rigctl.workbench.evaluate import evaluate, simulate_run
 from rigctl.workbench.fitting import (
-    FIT_ON_NFEV,
     CandidateTask,
     error_or_inf,
     fit_candidate,
-    fit_on,
     identify_model,
 )
 from rigctl.workbench.identify import (
@@ -39,20 +35,13 @@ from rigctl.workbench.identify import (
     free_params,
     least_squares_fit,
     physically_valid,
-    with_uncertainties,
 )
-from rigctl.workbench.mass_search import refit_over_mass
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects, without_effect
-from rigctl.workbench.pairs import Pair, beats_single, best_pair, wants_pairs
-from rigctl.workbench.pairs import firsts as pair_firsts
 from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S, TaskFailed, default_workers, run_tasks
 from rigctl.workbench.ranking import (
     MIN_ERROR_REDUCTION,
     CandidateScore,
     Verdict,
-    VerdictKind,
-    earns_its_place,
-    excess_error,
     rank,
     score_candidate,
     suggest_runs,
@@ -70,8 +59,6 @@ from rigctl.workbench.round_eta import RoundClock
 
 MAX_BASE_RESTARTS = 2
 """Times a round is run again from a better fit of its own model (:func:`better_model`)."""
-MAX_AUTO_STEPS = 5  # rounds of --auto at most: each adds one effect, and this bounds its run time
-PRUNE_MAX_NFEV = FIT_ON_NFEV
 """Least-squares evaluations of the refit without an effect when checking that it earns its place
 (one pass of the final model's polishing, :func:`polish`)."""
 COST_PROBE_S = 30.0  # seconds of the first run each candidate is timed on (several cycles)
@@ -172,19 +159,6 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
         return (f"{FEATURES[k].phrase} (error {base_fit.feature_error[k]:.1f} -> "
                 f"{cand_fit.feature_error[k]:.1f})")
     return "nothing (no residual structure removed)"
-
-
-def polish(dataset: Dataset, result: FitResult, say: Progress = lambda _m: None,
-           **run: Any) -> FitResult:
-    """The final model of ``--auto`` fitted on while it still gains (:func:`~rigctl.workbench.
-    fitting.fit_on`: passes of the budget of each refit without an effect that it is then compared
-    with), then searched over the slider mass (:func:`~rigctl.workbench.mass_search.
-    refit_over_mass`, with ``run``'s workers). The candidate fits that chose each effect are short
-    (a dozen candidates per round), so the model with all its effects may stop short of its
-    minimum while the refit without one starts from there."""
-    best = refit_over_mass(dataset, fit_on(dataset, result), say=say, **run)
-    # uncertainties once, at the end values: a further fit would be one more pass
-    return result if best is result else with_uncertainties(dataset, best)
 
 
 def refine(dataset: Dataset, result: FitResult) -> FitResult:
@@ -366,7 +340,20 @@ def diagnose(
     on_fit: FitListener | None = None,
 ) -> Diagnosis:
     """Rank candidate effects for ``choice`` on ``dataset`` (see the module docstring);
-    ``on_fit``: each candidate's fit as it arrives (:func:`run_round`)."""
+    ``on_fit``: each candidate's fit as it arrives (:func:`run_round`). With ``auto``, forward
+    selection over the one search (:func:`rigctl.workbench.auto_diagnosis.diagnose_auto`), on
+    this machine's worker processes (``scheduler`` is refused: the search's evaluation pool is
+    local)."""
+    if auto:
+        if scheduler is not None:
+            raise ValueError("--auto runs its searches on this machine's worker processes; "
+                             "a Dask scheduler serves the ranking without --auto")
+        # imported here: auto_diagnosis tells its selection as this module's Diagnosis
+        from rigctl.workbench.auto_diagnosis import diagnose_auto
+
+        return diagnose_auto(dataset, choice, candidates=candidates,
+                             workers=0 if in_process else workers, progress=progress,
+                             baseline=baseline, on_fit=on_fit)
     say = progress or (lambda _msg: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")
@@ -375,123 +362,23 @@ def diagnose(
     say(f"baseline error {model.error:.3g}; fitting {len(pool)} candidate effects")
     diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
     diag.steps.append(DiagnosisStep(0, model.choice.label(), None, model.error, None))
-    restarts = 0
     carried: dict[str, FitResult] = {}
-    tried: dict[str, tuple[FitResult, float]] = {}  # this step's candidate fits, refits included
-    while True:
+    for restarts in range(MAX_BASE_RESTARTS + 1):
         rnd = run_round(dataset, model, pool, workers=workers, scheduler=scheduler,
                         progress=progress, timeout_s=timeout_s, in_process=in_process,
                         carried=carried, on_fit=on_fit)
-        _remember(tried, rnd.fits, model.error)
         better = better_model(dataset, model, rnd.fits) if restarts < MAX_BASE_RESTARTS else None
-        if better is not None:
-            restarts += 1
-            say(f"{model.choice.label()} fits better than its own fit reached: {better.message}; "
-                "ranking the candidates again")
-            last = diag.steps[-1]
-            last.note = "; ".join(filter(None, [last.note, better.message]))
-            last.error = better.error
-            model = better
-            carried = {n: f for n, f in rnd.fits.items() if n in f.choice.effects}
-            continue
-        restarts = 0
-        carried = {}
-        diag.rounds.append(rnd)
-        kind = rnd.verdict.kind
-        counts = {"workers": workers, "scheduler": scheduler, "timeout_s": timeout_s,
-                  "in_process": in_process}
-        # the single effect --auto would add: the verdict's, or the first of an indistinguishable
-        # group (None: nothing significant)
-        single = None if kind is VerdictKind.NONE else next(
-            s for s in rnd.ranking if s.effect == (rnd.verdict.verdict if kind is VerdictKind.EFFECT
-                                                   else rnd.verdict.candidates[0]))
-        if auto and len(diag.steps) < MAX_AUTO_STEPS and wants_pairs(model, single):
-            pair = _try_pairs(dataset, model, tried, say, **counts)
-            if single is not None and pair is not None and not beats_single(
-                    pair, single, rnd.fits.get(single.effect), dataset.n_events):
-                say(f"{single.effect} alone ({single.error:.3g}) is as good as the pair with its "
-                    "fewer parameters; adding it alone")
-                pair = None
-            if pair is not None:
-                say(f"adding {pair.first} and {pair.second} together")
-                first_score = next(s for s in rnd.ranking if s.effect == pair.first)
-                diag.steps.append(DiagnosisStep(
-                    len(diag.steps), pair.first_fit.choice.label(), pair.first, pair.first_fit.error,
-                    first_score.delta_bic, f"added with {pair.second}: alone {pair.first_fit.error:.3g}, "
-                                           "it does not halve the error"))
-                note = (f"together with {pair.first}: {model.error:.3g} -> {pair.fit.error:.3g} "
-                        "(neither alone halves it)")
-                model, note = _with_element_count(dataset, refine(dataset, pair.fit), note, say,
-                                                  **counts)
-                diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), pair.second,
-                                                model.error, pair.score.delta_bic, note))
-                pool = [c for c in pool if c not in (pair.first, pair.second)]
-                tried = {}
-                if not pool:
-                    diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
-                    break
-                continue
-        if not auto or single is None or len(diag.steps) > MAX_AUTO_STEPS:
+        if better is None:
+            diag.rounds.append(rnd)
             break
-        best_score, best = single, single.effect
-        note = "" if kind is VerdictKind.EFFECT else \
-            f"indistinguishable from {', '.join(rnd.verdict.candidates[1:])}"
-        say(f"adding {best}: error {model.error:.3g} -> {best_score.error:.3g}")
-        model, note = _with_element_count(dataset, refine(dataset, rnd.fits[best]), note, say,
-                                          **counts)
-        diag.steps.append(DiagnosisStep(len(diag.steps), model.choice.label(), best, model.error,
-                               best_score.delta_bic, note))
-        pool = [c for c in pool if c != best]
-        tried = {}
-        if not pool:
-            diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None), {}, []))
-            break
-    if auto and len(diag.steps) > 1:
-        _keep_effects_that_earn_their_place(dataset, diag, say, workers=workers,
-                                            scheduler=scheduler, timeout_s=timeout_s,
-                                            in_process=in_process)
+        say(f"{model.choice.label()} fits better than its own fit reached: {better.message}; "
+            "ranking the candidates again")
+        last = diag.steps[-1]
+        last.note = "; ".join(filter(None, [last.note, better.message]))
+        last.error = better.error
+        model = better
+        carried = {n: f for n, f in rnd.fits.items() if n in f.choice.effects}
     return diag
-
-
-def _with_element_count(dataset: Dataset, model: FitResult, note: str, say: Progress,
-                        **run: Any) -> tuple[FitResult, str]:
-    """``model`` refitted at the element count that fits best where that matters
-    (:func:`~rigctl.workbench.element_count.best_element_count`), with the step's note."""
-    counted = best_element_count(dataset, model, say, **run)
-    if counted is model:
-        return model, note
-    n_el = counted.choice.build().n_elements
-    say(f"N = {n_el} elements: error {model.error:.3g} -> {counted.error:.3g}")
-    note = "; ".join(filter(None, [note, f"N = {n_el} elements (error {model.error:.3g} "
-                                         f"at N = {model.choice.build().n_elements})"]))
-    return refine(dataset, counted), note
-
-
-def _remember(tried: dict[str, tuple[FitResult, float]], fits: Mapping[str, FitResult],
-              e_model: float) -> None:
-    """Keep each candidate's fit that removed the largest fraction of its model's error."""
-    for name, res in fits.items():
-        old = tried.get(name)
-        if old is None or (e_model - res.error) / e_model > (old[1] - old[0].error) / old[1]:
-            tried[name] = (res, e_model)
-
-
-def _try_pairs(dataset: Dataset, model: FitResult, tried: Mapping[str, tuple[FitResult, float]],
-               say: Progress, **run: Any) -> Pair | None:
-    """The best significant pair of effects (:mod:`rigctl.workbench.pairs`) of this step's
-    candidate fits, or None."""
-    names = pair_firsts(tried)
-    if not names or len(tried) < 2:
-        return None
-    say(f"no single effect halves the error {model.error:.3g} while it stays above the "
-        f"scatter; fitting every other candidate on {' and on '.join(names)}")
-    pair = best_pair(dataset, model, tried, progress=say, **run)
-    if pair is None:
-        say("no pair is significant either")
-    else:
-        say(f"best pair: {pair.first} and {pair.second} together, error {model.error:.3g} -> "
-            f"{pair.fit.error:.3g} ({pair.first} alone {pair.first_fit.error:.3g})")
-    return pair
 
 
 def _rig_fn(dataset: Dataset) -> float | None:
@@ -500,62 +387,3 @@ def _rig_fn(dataset: Dataset) -> float | None:
     fns = [float(np.median(r.drive.fn_N)) for r in dataset.runs]
     fn = float(np.median(fns)) if fns else math.nan
     return fn if 0.0 < fn <= MAX_NORMAL_FORCE_N else None
-
-
-def _best_known(diag: Diagnosis, rest: FitResult) -> FitResult:
-    """``rest``, or the model of an earlier round with the same effects where that scores better.
-
-    Both are fits of the same model to the same data, so the lower error is the better estimate of
-    that model: the refit without an effect is a short local fit from the final model's values and
-    can end worse than the rounds' own fits did, and an effect must not be judged against a model
-    fitted worse than it already was (history: docs/decisions.md)."""
-    effects = sorted(rest.choice.effects)
-    known = [r.model for r in diag.rounds
-             if sorted(r.model.choice.effects) == effects and not r.model.misses_most_slips
-             and r.model.error < rest.error]
-    return min(known, key=lambda m: m.error, default=rest)
-
-
-def _keep_effects_that_earn_their_place(dataset: Dataset, diag: Diagnosis, say: Progress,
-                                        **run: Any) -> None:
-    """Every effect ``--auto`` added must, in the final model, at least halve the error the scatter
-    does not account for: the model refitted without it must be at least twice as wrong above the
-    scatter (:func:`ranking.earns_its_place`; well above the scatter, twice E). One that does not
-    is removed (the model refitted without it), and the last round's verdict says what no library
-    effect explains. A lone added effect is so judged against the baseline; of two hidden effects
-    each alone removes only part of the error, but in the final model each halves it. The final
-    model and each model without an effect are searched over the slider mass alike
-    (:mod:`rigctl.workbench.mass_search`) before they are compared."""
-    model = polish(dataset, diag.rounds[-1].model, say, **run)
-    if model.error < diag.rounds[-1].model.error:
-        say(f"{model.choice.label()} fitted on: error {diag.rounds[-1].model.error:.3g} -> "
-            f"{model.error:.3g}")
-        diag.steps[-1].error = model.error
-        diag.rounds[-1].model = model
-    for effect in [st.added for st in diag.steps if st.added]:
-        if effect not in model.choice.effects:
-            continue
-        try:
-            rest = identify_model(dataset, without_effect(model.choice, effect),
-                                  with_uncertainty=False, max_nfev=PRUNE_MAX_NFEV)
-        except (ParameterError, SimulationError):
-            continue
-        # the model without the effect gets the same mass search as the model with it: an effect
-        # is not kept for a valley the search found only for the model that has it
-        rest = refit_over_mass(dataset, rest, say=say, **run)
-        rest = _best_known(diag, rest)
-        if earns_its_place(model.error, rest.error):
-            continue
-        say(f"removing {effect}: without it the error is {rest.error:.3g}, with it "
-            f"{model.error:.3g} (above the scatter {excess_error(rest.error):.3g} -> "
-            f"{excess_error(model.error):.3g}: it does not halve it)")
-        model = refine(dataset, rest)
-        diag.steps.append(DiagnosisStep(
-            len(diag.steps), model.choice.label(), None, model.error, None,
-            f"removed {effect}: it does not halve the error above the scatter ({rest.error:.3g} "
-            f"without it, {diag.rounds[-1].model.error:.3g} with it)"))
-        last = diag.rounds[-1]
-        text = unexplained_text(None, model.error, discrepancies(residual_map(
-            dataset, evaluate(dataset, model.choice).score.comparisons)))
-        diag.rounds.append(Round(model, [], Verdict(VerdictKind.NONE, [], None, text), {},
-                                 last.discrepancies))

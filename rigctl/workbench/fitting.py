@@ -136,7 +136,7 @@ def identify_model(
         # the preset's start won on another rig's data: its stiffness and friction are now the
         # data's, so its mass and damping (still the preset's) are scanned and fitted on from
         # there; kept as they were they would stay the preset's through every later fit (a local
-        # fit hardly moves the mass, mass_search's module docstring), and the effects fitted later
+        # fit hardly moves the mass: the drop shape and the ringing are not smooth in it), and the effects fitted later
         # would take up their misfit (docs/decisions.md)
         best = _fit_from(dataset, best.choice, best.error, free, fns, free_dynamics=True,
                          max_nfev=max_nfev, with_uncertainty=with_uncertainty)
@@ -491,30 +491,6 @@ class CandidateTask:
     dataset: Dataset
     base: FitResult
     effect: str
-
-
-FIT_ON_NFEV = 12
-"""Least-squares evaluations per pass of :func:`fit_on` (the budget of a refit without an effect)."""
-FIT_ON_MIN_GAIN = 0.03
-"""A further pass of :func:`fit_on` is run while the last one removed at least this fraction."""
-FIT_ON_MAX_PASSES = 3
-
-
-def fit_on(dataset: Dataset, result: FitResult, max_passes: int = FIT_ON_MAX_PASSES) -> FitResult:
-    """``result`` fitted on while it still gains: passes of FIT_ON_NFEV evaluations of its free
-    parameters, at most ``max_passes``, stopping once a pass gains less than FIT_ON_MIN_GAIN
-    (``result`` itself where no pass gains). A candidate fit is short (a dozen candidates per
-    round), so a fit that chose an effect may stop short of its minimum; no uncertainties."""
-    free = free_params(result.choice, list(result.free))
-    best = result
-    for _ in range(max_passes):
-        nxt = least_squares_fit(dataset, best.choice, free, max_nfev=FIT_ON_NFEV)
-        gain = (best.error - nxt.error) / best.error if best.error > 0 else 0.0
-        if nxt.error < best.error:
-            best = nxt
-        if gain < FIT_ON_MIN_GAIN:
-            break
-    return best
 
 
 def fit_candidate(task: CandidateTask, with_uncertainty: bool = False) -> FitResult:

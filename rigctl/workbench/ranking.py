@@ -40,9 +40,7 @@ MIN_ERROR_REDUCTION = 0.10
 MIN_E2_REDUCTION = 0.5
 INDISTINGUISHABLE_DELTA_BIC = 6.0
 HALVING = 0.5
-"""An effect earns its place when it removes at least this fraction of the error."""
-SCATTER_E2 = 1.0
-"""E^2 of a model whose residuals are the measurement's scatter alone (E is in units of it)."""
+"""A named effect explains most of a misfit when it removes at least this fraction of the error."""
 STRUCTURED_E2 = 4.0
 """E^2 above this (twice the scatter) counts as a misfit to explain, not noise."""
 
@@ -204,23 +202,3 @@ def suggest_protocol(names: Sequence[str], effect_files: tuple[str, ...] = (),
         text += f" - this campaign has: {', '.join(protocols_present)}"
     return text
 
-
-def excess_error(e: float) -> float:
-    """The part of E that the scatter does not account for: ``sqrt(max(E^2 - 1, 0))``.
-
-    E is the RMS of block residuals in units of the measurement's scatter (:mod:`metrics`): a model
-    whose residuals are the scatter alone scores E^2 ~ 1 and a model-form error b adds in
-    quadrature, E^2 = 1 + b^2. So b, not E, is what an effect can remove; E itself cannot fall
-    below about 1 however right the model."""
-    return math.sqrt(max(e * e - SCATTER_E2, 0.0))
-
-
-def earns_its_place(e_with: float, e_without: float) -> bool:
-    """An effect in a final model earns its place when it at least halves the error the scatter
-    does not account for (:func:`excess_error`; for E well above 1 this is halving E itself) and
-    still gains E^2 >= MIN_E2_REDUCTION (a model within the scatter without it has nothing left
-    for it to explain)."""
-    if not (math.isfinite(e_with) and math.isfinite(e_without)):
-        return math.isfinite(e_with)
-    return (excess_error(e_with) <= HALVING * excess_error(e_without)
-            and e_without**2 - e_with**2 >= MIN_E2_REDUCTION)

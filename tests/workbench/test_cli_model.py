@@ -105,6 +105,10 @@ def test_unknown_effect_and_missing_path_are_usage_errors(campaign, tmp_path, ca
     assert "unknown effect 'magic'" in capsys.readouterr().err
     assert main(["model", "diagnose", str(tmp_path / "nowhere")]) == 2
     assert "nowhere" in capsys.readouterr().err
+    # --auto's search runs on local workers: a Dask scheduler with it is refused before any fit
+    assert main(["model", "diagnose", str(campaign), "--auto", "--scheduler",
+                 "tcp://127.0.0.1:9"]) == 2
+    assert "--auto" in capsys.readouterr().err
 
 
 @pytest.mark.slow

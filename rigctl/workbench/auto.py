@@ -1,0 +1,54 @@
+"""The automatic choice of effects: the one search, the score screen, forward selection.
+
+:func:`auto_select` is what ``rigctl model diagnose --auto`` does on a dataset, as one call: the
+model identified by :func:`~rigctl.workbench.search.search_model`, then
+:func:`~rigctl.workbench.selection.select_effects` over the candidates the model lacks, each step
+screened by :func:`~rigctl.workbench.screening.score_screen` and its kept sets fitted by the same
+search (from the screen's best point as well), the model's own unfinished fit caught by
+:func:`~rigctl.workbench.selection.unfinished_model`. docs/identification.md, "Choosing the
+effects".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+from rigctl.records.dataset import Dataset
+from rigctl.workbench.budget import Budget
+from rigctl.workbench.fitting import error_or_inf
+from rigctl.workbench.identify import FitResult, fn_range
+from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.screening import Screened, score_screen
+from rigctl.workbench.search import search_model
+from rigctl.workbench.selection import Selection, select_effects
+
+Say = Callable[[str], None]
+
+
+def auto_select(
+    dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None = None,
+    pool: Sequence[str] | None = None, budget: Budget | None = None,
+    say: Say = lambda _m: None,
+) -> Selection:
+    """Identify ``model`` (unless it is a fit already) and choose its effects from ``pool``
+    (default: every library and plug-in effect it lacks). ``budget``'s cancel is shared by every
+    search and screen of the run: :meth:`~rigctl.workbench.budget.Budget.cancel` ends the run
+    (the search running raises :class:`~rigctl.workbench.budget.SearchCancelledError`); each
+    search keeps its own default budget."""
+    shared = budget or Budget()
+
+    def fit(ds: Dataset, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
+        return search_model(ds, choice, workers=workers, with_uncertainty=False, starts=starts,
+                            cancel=shared.cancel_event)
+
+    def screen(ds: Dataset, fitted: FitResult, sets: Sequence[tuple[str, ...]]
+               ) -> list[Screened]:
+        return score_screen(ds, fitted, sets, workers=workers, say=say,
+                            budget=Budget(cancel_event=shared.cancel_event))
+
+    base = model if isinstance(model, FitResult) else fit(dataset, model)
+    say(f"{base.choice.label()}: E {base.error:.3g}")
+    fns = fn_range(dataset)
+    candidates = candidate_effects(base.choice) if pool is None else list(pool)
+    return select_effects(dataset, base, candidates, fit=fit, screen=screen, say=say,
+                          error_of=lambda ds, c: error_or_inf(ds, c, fns))

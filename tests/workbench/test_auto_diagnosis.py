@@ -1,0 +1,110 @@
+"""A selection told as a diagnosis (rigctl/workbench/auto_diagnosis.py): rounds, the ranking of
+fitted and screened sets, and a step per effect added, removed or refitted. The residual maps are
+replaced (what is under test is the bookkeeping, not the simulation)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any, cast
+
+import pytest
+
+from rigctl.records.dataset import Dataset
+from rigctl.workbench import auto_diagnosis as ad
+from rigctl.workbench import selection as sel
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import VerdictKind, score_candidate
+from rigctl.workbench.screening import Screened
+
+N = 100
+DATASET = cast(Dataset, SimpleNamespace(n_events=N, runs=[], notes=[]))
+
+
+@pytest.fixture(autouse=True)
+def _no_simulation(monkeypatch):
+    monkeypatch.setattr(ad, "_map", lambda dataset, model: SimpleNamespace(model=model))
+    monkeypatch.setattr(ad, "discrepancies", lambda m: [f"misfit of {m.model.choice.label()}"])
+    monkeypatch.setattr(ad, "explain", lambda base, cand, b, c: f"explained by {c.choice.label()}")
+    monkeypatch.setattr(ad, "protocols_present", lambda d: ["tlre"])
+
+
+def fit(effects: tuple[str, ...], error: float) -> FitResult:
+    free = ("mu_s", "mu_k", *(f"{e}.p" for e in effects))
+    return FitResult(ModelChoice("paper", effects), error, {}, free)
+
+
+def trial(model: FitResult, effects: tuple[str, ...], error: float) -> sel.Trial:
+    res = fit(effects, error)
+    name = " + ".join(effects)
+    sc = score_candidate(name, model.error, error, N, len(effects))
+    return sel.Trial(effects, res, sc, error)
+
+
+def screened(effects: tuple[str, ...], error: float) -> Screened:
+    return Screened(effects, error, 0.0, 12, "spread point")
+
+
+def test_a_pair_added_is_two_steps_and_a_removal_a_third():
+    base = fit((), 10.0)
+    t_a, t_b = trial(base, ("a",), 9.4), trial(base, ("b",), 9.6)
+    t_ab = trial(base, ("a", "b"), 3.0)
+    r1 = sel.Round(base, [screened(("a", "b"), 3.5), screened(("a",), 9.0), screened(("c",), 9.8)],
+                   [t_ab, t_a, t_b], t_ab)
+    r2 = sel.Round(t_ab.fit, [screened(("c",), 2.95)], [], None)
+    final = fit(("b",), 3.05)
+    steps = [sel.Step("add", ("a", "b"), 10.0, 3.0, t_ab.score.delta_bic, t_ab.fit),
+             sel.Step("remove", ("a",), 3.0, 3.05, 1.0, final)]
+    diag = ad.as_diagnosis(DATASET, sel.Selection(base, final, steps, [r1, r2]))
+    assert [(s.added, s.error) for s in diag.steps] == [
+        (None, 10.0), ("a", 9.4), ("b", 3.0), (None, 3.05)]
+    assert diag.steps[1].note.startswith("added with b")
+    assert diag.steps[3].note.startswith("removed a")
+    assert diag.final_model is final  # a round of its own after the removal
+    assert diag.rounds[-1].verdict.kind is VerdictKind.NONE
+    first = diag.rounds[0]
+    assert first.verdict.verdict == "a + b"
+    names = [s.effect for s in first.ranking]
+    assert names[0] == "a + b" and names[-1] == "c"  # fitted first, screened only last
+    assert not first.ranking[-1].significant and "screened only" in first.ranking[-1].explains
+    assert first.ranking[0].explains == "explained by paper + a + b"
+    assert set(first.fits) == {"a", "b", "a + b"}
+    assert diag.to_json(True)["final_model"] == "paper + b"
+
+
+def test_a_refit_goes_into_the_step_s_note_and_its_error():
+    base = fit((), 10.0)
+    refit = fit((), 8.0)
+    t_a = trial(refit, ("a",), 4.0)
+    r0 = sel.Round(base, [screened(("a",), 6.0)], [trial(base, ("a",), 8.0)], None)
+    r1 = sel.Round(refit, [screened(("a",), 5.0)], [t_a], t_a)
+    r2 = sel.Round(t_a.fit, [screened(("b",), 3.9)], [], None)
+    steps = [sel.Step("refit", (), 10.0, 8.0, -20.0, refit),
+             sel.Step("add", ("a",), 8.0, 4.0, t_a.score.delta_bic, t_a.fit)]
+    diag = ad.as_diagnosis(DATASET, sel.Selection(base, t_a.fit, steps, [r0, r1, r2]))
+    assert [(s.added, s.error) for s in diag.steps] == [(None, 8.0), ("a", 4.0)]
+    assert "10 -> 8" in diag.steps[0].note
+    assert diag.final_model is t_a.fit and len(diag.rounds) == 3
+
+
+def test_nothing_added_says_what_is_unexplained():
+    base = fit((), 10.0)
+    rnd = sel.Round(base, [screened(("a",), 9.7)], [], None)
+    diag = ad.as_diagnosis(DATASET, sel.Selection(base, base, [], [rnd]))
+    assert len(diag.steps) == 1 and len(diag.rounds) == 1
+    v = diag.first.verdict
+    assert v.kind is VerdictKind.NONE
+    assert "misfit of paper" in v.unexplained  # E^2 = 100 > 4 with a structured residual
+
+
+def test_diagnose_auto_hands_the_fits_to_on_fit(monkeypatch):
+    base = fit((), 10.0)
+    t_a = trial(base, ("a",), 4.0)
+    out = sel.Selection(base, t_a.fit, [sel.Step("add", ("a",), 10.0, 4.0, -50.0, t_a.fit)],
+                        [sel.Round(base, [screened(("a",), 5.0)], [t_a], t_a)])
+    seen: list[Any] = []
+    monkeypatch.setattr(ad, "auto_select", lambda *a, **kw: out)
+    diag = ad.diagnose_auto(DATASET, ModelChoice("paper"), candidates=["a"],
+                            on_fit=lambda name, f: seen.append((name, f.error)))
+    assert seen == [("a", 4.0)]
+    assert diag.final_model is t_a.fit
