@@ -136,8 +136,8 @@ def identify_model(
         # the preset's start won on another rig's data: its stiffness and friction are now the
         # data's, so its mass and damping (still the preset's) are scanned and fitted on from
         # there; kept as they were they would stay the preset's through every later fit (a local
-        # fit hardly moves the mass: the drop shape and the ringing are not smooth in it), and the effects fitted later
-        # would take up their misfit (docs/decisions.md)
+        # fit hardly moves the mass: the drop shape and the ringing are not smooth in it), and
+        # the effects fitted later would take up their misfit (docs/decisions.md)
         best = _fit_from(dataset, best.choice, best.error, free, fns, free_dynamics=True,
                          max_nfev=max_nfev, with_uncertainty=with_uncertainty)
     return best
