@@ -1,4 +1,5 @@
-"""How long the rest of a diagnose round will take, from the candidate fits already done.
+"""How long the rest of a diagnose round (or a step's screens, fits or refits) will take, from
+the parts already done.
 
 A round fits every candidate effect (:func:`rigctl.workbench.diagnose.run_round`), each with a
 measured cost: the time one simulation of it takes (:func:`~rigctl.workbench.diagnose.cost_order`).

@@ -48,6 +48,7 @@ from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice, effect_of, with_effects
 from rigctl.workbench.parallel import default_workers
+from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.search import SearchState
 from rigctl.workbench.search_pool import OK, EvaluationPool
 from rigctl.workbench.search_space import SearchSpace, build_space
@@ -197,8 +198,6 @@ class _SetScreen:
         error = self.model.error * math.sqrt(cost / n0) if n0 > 0.0 else self.model.error
         start = None if where == "off" else self._start(x_at, r_at, metric)
         out = Screened(self.effects, error, score, self.budget.used - used, where, start)
-        say(f"  screened {' + '.join(self.effects)}: {error:.3g} (score {score:.3g}, best at "
-            f"the {where}, {out.evaluations} evaluations)")
         return out, metric
 
     def _start(self, x: FloatArray, r: FloatArray, metric: BaseMetric) -> ModelChoice:
@@ -233,8 +232,12 @@ def score_screen(
             model.jacobian.shape[1] == len(model.free):
         metric = BaseMetric.of(model.jacobian, model.free)
     out = []
-    for effects in sets:
+    clock = RoundClock([1.0] * len(sets))
+    for i, effects in enumerate(sets):
         one = _SetScreen(dataset, model, tuple(effects), budget, n_workers, seed)
-        screened, metric = one.run(metric, say)
-        out.append(screened)
+        s, metric = one.run(metric, say)
+        out.append(s)
+        if math.isfinite(s.error):
+            say(f"  screened {' + '.join(s.effects)}: {s.error:.3g} (score {s.score:.3g}, best "
+                f"at the {s.best_at}, {s.evaluations} evaluations) {clock.finished(i)}")
     return sorted(out, key=lambda s: (s.error, -s.score))

@@ -54,6 +54,7 @@ from rigctl.workbench.model_choice import (
     without_effect,
 )
 from rigctl.workbench.ranking import CandidateScore, score_candidate
+from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.screening import Screened
 
 
@@ -212,11 +213,13 @@ def forward_step(
             "  nothing to screen")
         return None, [], screens
     trials: list[Trial] = []
-    for s in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]:
+    kept = [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]
+    clock = RoundClock([1.0] * len(kept))
+    for i, s in enumerate(kept):
         res = fit(dataset, with_effects(model.choice, s.effects),
                   starts=() if s.start is None else (s.start,))
         name = " + ".join(s.effects)
-        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}")
+        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g} {clock.finished(i)}")
         trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
     trials.sort(key=lambda t: _finite(t.fit.error))
     best_single = next((t for t in trials if len(t.effects) == 1 and t.score.significant), None)
@@ -236,10 +239,13 @@ def backward_elimination(
     steps: list[Step] = []
     while True:
         outs: list[tuple[str, FitResult, CandidateScore]] = []
-        for effect in (e for e in model.choice.effects if e not in protected):
+        removable = [e for e in model.choice.effects if e not in protected]
+        clock = RoundClock([1.0] * len(removable))
+        for i, effect in enumerate(removable):
             rest = fit(dataset, without_effect(model.choice, effect))
             outs.append((effect, rest, _score(effect, rest, model, dataset.n_events)))
-            say(f"  without {effect}: {rest.error:.3g} (with it {model.error:.3g})")
+            say(f"  without {effect}: {rest.error:.3g} (with it {model.error:.3g}) "
+                f"{clock.finished(i)}")
         weak = [o for o in outs if not o[2].significant]
         if not weak:
             return model, steps

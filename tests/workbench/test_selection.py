@@ -220,3 +220,15 @@ def test_a_trial_whose_gain_is_its_own_is_added_after_the_check():
     out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen),
                              error_of=t.error_of)
     assert [(s.kind, s.effects) for s in out.steps] == [("add", ("a",))]
+
+
+def test_each_full_fit_and_refit_says_how_far_its_part_is():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0})
+    base = t.fit(DATASET, ModelChoice("paper"))
+    said: list[str] = []
+    sel.select_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen),
+                       say=said.append)
+    fitted = [m for m in said if m.strip().startswith("fitted")]
+    assert fitted and fitted[0].endswith("left in this round]") and "[1/" in fitted[0]
+    assert fitted[-1].endswith(f"[{len(fitted)}/{len(fitted)}]")
+    assert any(m.strip().startswith("without a") and m.endswith("[1/1]") for m in said)
