@@ -11,8 +11,11 @@ effects".
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
+from rigctl.errors import SimulationError
+from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.fitting import error_or_inf
@@ -38,15 +41,23 @@ def auto_select(
     shared = budget or Budget()
 
     def fit(ds: Dataset, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
-        return search_model(ds, choice, workers=workers, with_uncertainty=False, starts=starts,
-                            cancel=shared.cancel_event)
+        try:
+            return search_model(ds, choice, workers=workers, with_uncertainty=False,
+                                starts=starts, cancel=shared.cancel_event)
+        except (ParameterError, SimulationError) as exc:
+            # a candidate that cannot be identified (no valid start, a plug-in term that fails)
+            # is a failed trial, scored at an infinite error: it is never added, and an effect
+            # whose removal cannot be fitted is kept
+            say(f"  {choice.label()}: no fit ({str(exc).splitlines()[0] if str(exc) else exc})")
+            return FitResult(choice, math.inf, {}, (), message=f"fit failed: {exc}")
 
     def screen(ds: Dataset, fitted: FitResult, sets: Sequence[tuple[str, ...]]
                ) -> list[Screened]:
         return score_screen(ds, fitted, sets, workers=workers, say=say,
                             budget=Budget(cancel_event=shared.cancel_event))
 
-    base = model if isinstance(model, FitResult) else fit(dataset, model)
+    base = model if isinstance(model, FitResult) else search_model(
+        dataset, model, workers=workers, with_uncertainty=False, cancel=shared.cancel_event)
     say(f"{base.choice.label()}: E {base.error:.3g}")
     fns = fn_range(dataset)
     candidates = candidate_effects(base.choice) if pool is None else list(pool)

@@ -108,3 +108,30 @@ def test_diagnose_auto_hands_the_fits_to_on_fit(monkeypatch):
                             on_fit=lambda name, f: seen.append((name, f.error)))
     assert seen == [("a", 4.0)]
     assert diag.final_model is t_a.fit
+
+
+def test_a_candidate_that_cannot_be_fitted_is_a_failed_trial_not_a_failed_run(monkeypatch):
+    from rigctl.model import ParameterError
+    from rigctl.workbench import auto
+
+    base = fit((), 10.0)
+
+    def search(dataset: Any, choice: ModelChoice, **kw: Any) -> FitResult:
+        if "b" in choice.effects:
+            raise ParameterError("paper + b: kinetic friction is not below static friction")
+        return fit(choice.effects, 4.0 if choice.effects == ("a",) else 10.0)
+
+    def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:
+        return sorted((screened(s, 5.0 if s == ("a",) else 6.0) for s in sets),
+                      key=lambda s: s.error)
+
+    monkeypatch.setattr(auto, "search_model", search)
+    monkeypatch.setattr(auto, "score_screen", screen)
+    monkeypatch.setattr(auto, "error_or_inf", lambda ds, c, fns: 10.0)
+    monkeypatch.setattr(auto, "fn_range", lambda ds: (1.0, 2.0))
+    said: list[str] = []
+    out = auto.auto_select(DATASET, base, pool=["a", "b"], say=said.append)
+    assert out.final.choice.effects == ("a",)
+    failed = [t for r in out.rounds for t in r.trials if "b" in t.effects]
+    assert failed and all(t.fit.error == float("inf") for t in failed)
+    assert any("no fit" in m for m in said)
