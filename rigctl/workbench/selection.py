@@ -15,10 +15,11 @@ One step:
    on.
 2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
    ``SCREEN_KEEP`` pairs go on.
-3. **Gate**: where no screened set is significant against the model by the rule below
-   (:func:`promising`), the step ends there: a set's screened error is that of a point the
+3. **Gate**: of the kept sets only those whose screened error is significant against the model
+   by the rule below go on (:func:`promising`): a set's screened error is that of a point the
    screen evaluated, so a set the full fit would find significant almost always screens so too.
-4. **Fit** the kept sets fully (``fit``), each also from the point where its screen found its
+   Where none does, the step ends there.
+4. **Fit** those sets fully (``fit``), each also from the point where its screen found its
    error (so a fit does not end worse than what the screen saw), and score each against the
    model (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as
    the samples, at least 10 % of the error, E^2 down by 0.5).
@@ -171,19 +172,17 @@ def by_short_fits(short_fit: ShortFitFn, say: Say = lambda _m: None) -> ScreenFn
                                                     say=say)
 
 
-def promising(model: FitResult, screens: Sequence[Screened], n_events: int) -> bool:
-    """Whether any screened set is significant against ``model`` by the rule a fit is judged by.
+def promising(model: FitResult, s: Screened, n_events: int) -> bool:
+    """Whether the screened set ``s`` is significant against ``model`` by the rule a fit is
+    judged by.
 
     A set's screened error is that of a point the screen evaluated (its base re-fitted linearly),
-    and the set's full fit starts there: it is about what the fit reaches at worst. Where no set
-    screens significant, a full fit would have to find a gain none of the screen's points shows
-    (an effect whose gain lies outside its plausible ranges, or that needs the base to move far
-    from the model), which is the screen's miss: the step ends without fitting, as a step whose
-    fits found nothing significant would."""
-    return any(
-        score_candidate(" + ".join(s.effects), model.error, s.error, n_events,
-                        _n_new(model, s)).significant
-        for s in screens if math.isfinite(s.error))
+    and the set's full fit starts there: it is about what the fit reaches at worst. A set that does
+    not screen significant would need its full fit to find a gain none of the screen's points
+    shows (an effect whose gain lies outside its plausible ranges, or that needs the base to move
+    far from the model): that is the screen's miss, and such a set is not fitted."""
+    return math.isfinite(s.error) and score_candidate(
+        " + ".join(s.effects), model.error, s.error, n_events, _n_new(model, s)).significant
 
 
 def _n_new(model: FitResult, s: Screened) -> int:
@@ -207,13 +206,13 @@ def forward_step(
                  for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
     pairs = screen(dataset, model, pair_sets)
     screens = sorted([*singles, *pairs], key=lambda s: s.error)
-    if not promising(model, screens, n):
+    kept = [s for s in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]] if promising(model, s, n)]
+    if not kept:
         say(f"  no screened set is significant against {model.choice.label()} "
             f"({model.error:.3g}; best {screens[0].error:.3g})" if screens else
             "  nothing to screen")
         return None, [], screens
     trials: list[Trial] = []
-    kept = [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]]
     clock = RoundClock([1.0] * len(kept))
     for i, s in enumerate(kept):
         res = fit(dataset, with_effects(model.choice, s.effects),
