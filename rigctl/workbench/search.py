@@ -1,8 +1,8 @@
 """Identification as one search: data-scale starts, CMA-ES, a least-squares polish, one budget.
 
-(New; not yet used by ``diagnose``, which still calls :func:`rigctl.workbench.fitting.
-identify_model` and :func:`~rigctl.workbench.fitting.fit_candidate`. docs/identification.md, "The
-search".)
+(``diagnose --auto`` identifies every model with it, :mod:`rigctl.workbench.auto`; ``compare``
+and the ranking without ``--auto`` still call :func:`rigctl.workbench.fitting.identify_model` and
+:func:`~rigctl.workbench.fitting.fit_candidate`. docs/identification.md, "The search".)
 
 1. **Space** (:mod:`rigctl.workbench.search_space`): every ``identify`` parameter of the base and
    the effects, the slider mass and drive damping where the data do not state them (the mass tied

@@ -1,6 +1,6 @@
 """Which effects a model needs: forward selection and backward elimination over one search.
 
-(New; not yet used by ``diagnose``. docs/identification.md, "Choosing the effects".)
+(``diagnose --auto``: :mod:`rigctl.workbench.auto`. docs/identification.md, "Choosing the effects".)
 
 The candidates of a step are *effect sets*: every library effect (and plug-in) the model lacks on
 its own, and pairs of them. A pair is the same kind of candidate as a single effect, fitted by the
