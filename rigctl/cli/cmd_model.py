@@ -267,12 +267,13 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
     print(f"model {r0.model.choice.label()}: baseline error {r0.model.error:.3g} "
           f"({diag.dataset.n_events} slip events)")
     print(f"protocols in the data: {', '.join(diag.protocols) or 'none recognised'}")
-    print("\n  effect                      error  reduction   delta BIC  signif.  explains")
+    width = max([26, *(len(s.effect) for s in r0.ranking)])
+    print(f"\n  {'effect':{width}s}  error  reduction   delta BIC  signif.  explains")
     for s in r0.ranking:
         red = f"{s.error_reduction * 100:6.0f} %" if math.isfinite(s.error_reduction) else \
             "      -"
         dbic = f"{s.delta_bic:10.1f}" if math.isfinite(s.delta_bic) else "         -"
-        print(f"  {s.effect:26s} {s.error:7.3g}  {red}  {dbic}  "
+        print(f"  {s.effect:{width}s} {s.error:7.3g}  {red}  {dbic}  "
               f"{'yes' if s.significant else '   '}      {s.explains}")
     v = r0.verdict
     extra = f" ({', '.join(v.candidates)})" if v.candidates else ""

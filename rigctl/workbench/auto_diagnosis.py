@@ -97,8 +97,7 @@ def _tell_step(diag: Diagnosis, step: Step, sel: Selection) -> None:
             n, alone.fit.choice.label() if alone else label, first,
             alone.fit.error if alone else step.error_after,
             alone.score.delta_bic if alone else step.delta_bic,
-            f"added with {second}"
-            + (f": alone {alone.fit.error:.3g}, not significant" if alone else "")))
+            f"added with {second}" + (f": alone {alone.fit.error:.3g}" if alone else "")))
         diag.steps.append(DiagnosisStep(
             n + 1, label, second, step.error_after, step.delta_bic,
             f"together with {first}: {step.error_before:.3g} -> {step.error_after:.3g}"))

@@ -208,15 +208,26 @@ def ranking(scores: Sequence[CandidateScore], baseline_error: float, path: Path)
     scores = [s for s in scores if np.isfinite(s.error)]
     fig, ax = plt.subplots(figsize=(8, 0.35 * max(len(scores), 3) + 1.2))
     y = np.arange(len(scores))[::-1]
+    # a set --auto only screened (its error a linear re-fit, not a fit) is drawn hatched
+    screened = [s.explains.startswith("screened only") for s in scores]
     colors = ["#2ca02c" if s.significant else "#bbbbbb" for s in scores]
-    ax.barh(y, [s.error for s in scores], color=colors)
+    bars = ax.barh(y, [s.error for s in scores], color=colors)
+    for bar, only in zip(bars, screened, strict=True):
+        if only:
+            bar.set_facecolor("white")
+            bar.set_edgecolor("#999999")
+            bar.set_hatch("///")
     ax.axvline(baseline_error, color="k", ls="--", lw=1, label=f"baseline {baseline_error:.3g}")
     ax.set_yticks(y)
-    ax.set_yticklabels([f"{s.effect} (dBIC {s.delta_bic:.0f})" for s in scores], fontsize=8)
+    ax.set_yticklabels([f"{s.effect} (screened)" if only else
+                        f"{s.effect} (dBIC {s.delta_bic:.0f})"
+                        for s, only in zip(scores, screened, strict=True)], fontsize=8)
     ax.set_xlabel("error E (event-aware, in units of measured scatter)")
     ax.set_xscale("log")
     ax.legend(fontsize=8)
-    ax.set_title("base + candidate effect (green: significant)", fontsize=9, loc="left")
+    ax.set_title("base + candidate effect (green: significant"
+                 + ("; hatched: screened only, not fitted)" if any(screened) else ")"),
+                 fontsize=9, loc="left")
     return _save(fig, path)
 
 
