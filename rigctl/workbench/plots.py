@@ -226,7 +226,7 @@ def ranking(scores: Sequence[CandidateScore], baseline_error: float, path: Path)
     ax.set_xscale("log")
     ax.legend(fontsize=8)
     ax.set_title("base + candidate effect (green: significant"
-                 + ("; hatched: screened only, not fitted)" if any(screened) else ")"),
+                 + ("; hatched: screened only)" if any(screened) else ")"),
                  fontsize=9, loc="left")
     return _save(fig, path)
 
