@@ -22,6 +22,7 @@ from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round, explain
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.parallel import sigterm_raises
 from rigctl.workbench.ranking import (
     CandidateScore,
     Verdict,
@@ -50,8 +51,9 @@ def diagnose_auto(
     say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
         f"{len(pool)} candidate effects ...")
     budget = Budget(cancel_event=cancel) if cancel is not None else None
-    sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool, budget=budget,
-                      say=say)
+    with sigterm_raises():  # SIGTERM ends the run as Ctrl-C does: every pool terminated
+        sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
+                          budget=budget, say=say)
     if on_fit is not None:
         for rnd in sel.rounds:
             for t in rnd.trials:

@@ -167,7 +167,7 @@ def die_with_parent(parent_pid: int) -> None:
 
 
 @contextlib.contextmanager
-def _sigterm_raises() -> Iterator[None]:
+def sigterm_raises() -> Iterator[None]:
     """Within the block, SIGTERM raises :class:`Terminated` in the main thread (only where SIGTERM
     still has its default action: a handler someone installed is left alone)."""
     if (threading.current_thread() is not threading.main_thread()
@@ -212,7 +212,7 @@ def _run_processes(
         if on_done:
             on_done(i, value)
 
-    with _sigterm_raises(), contextlib.ExitStack() as cleanup:
+    with sigterm_raises(), contextlib.ExitStack() as cleanup:
         cleanup.callback(_kill_all, started, running)
         while todo or running:
             while todo and len(running) < max(1, workers):
@@ -315,7 +315,7 @@ def _run_dask(
     own = not isinstance(scheduler, Client)
     client = connect(scheduler, min(timeout_s, CONNECT_TIMEOUT_S)) if own else scheduler
     where = f"the Dask scheduler at {getattr(client.scheduler, 'address', scheduler)}"
-    with _sigterm_raises(), contextlib.ExitStack() as cleanup:
+    with sigterm_raises(), contextlib.ExitStack() as cleanup:
         if own:
             cleanup.callback(client.close, timeout=REMOTE_CALL_TIMEOUT_S)
         futures: list[Future] = client.map(fn, list(tasks), pure=False)

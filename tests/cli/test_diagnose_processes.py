@@ -353,6 +353,27 @@ def test_an_interrupted_diagnose_leaves_no_worker_and_says_so_in_one_line(launch
     assert _survivors(seen) == []
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_auto_leaves_no_worker_within_2_s(launch, tmp_path, sig):
+    """--auto's searches and screens evaluate in their own pools: Ctrl-C or SIGTERM while both
+    workers hold in a candidate's screen ends the command and every worker within 2 s."""
+    cmd = launch(HELD_CANDIDATES, "--auto")
+    seen = _wait_until_held(cmd, tmp_path / "held.txt", 2)
+    t0 = time.monotonic()
+    if sig == signal.SIGINT:
+        os.killpg(cmd.pid, sig)
+    else:
+        os.kill(cmd.pid, sig)
+    code, _out, err = _watch_until_exit(cmd, seen, timeout_s=30.0)
+    ended_s = time.monotonic() - t0
+    # what is still running 2 s after the signal is a survivor (killed, and the test fails)
+    assert _survivors(seen, timeout_s=max(0.0, 2.0 - (time.monotonic() - t0))) == []
+    assert ended_s <= 2.0 + 0.5, ended_s  # the watch polls every 50 ms, psutil costs its own
+    assert code == (130 if sig == signal.SIGINT else 143), err
+    assert "Traceback" not in err, err
+
+
 def test_workers_die_with_a_killed_diagnose(launch, tmp_path):
     """SIGKILL gives the command no chance to clean up: the workers end themselves (Linux)."""
     if not sys.platform.startswith("linux"):
