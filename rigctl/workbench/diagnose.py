@@ -161,11 +161,6 @@ def explain(base_map: ResidualMap, cand_map: ResidualMap,
     return "nothing (no residual structure removed)"
 
 
-def refine(dataset: Dataset, result: FitResult) -> FitResult:
-    """Re-identify a chosen model with a fresh Jacobian (for uncertainties and the next round)."""
-    return refit(dataset, result.choice, result.free)
-
-
 def refit(dataset: Dataset, choice: ModelChoice, free_names: Sequence[str]) -> FitResult:
     """A short least-squares fit of ``free_names`` from ``choice``'s values, with uncertainties."""
     free = free_params(choice, list(free_names))
