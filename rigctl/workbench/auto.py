@@ -12,6 +12,7 @@ effects".
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable, Sequence
 
 from rigctl.errors import SimulationError
@@ -30,20 +31,19 @@ Say = Callable[[str], None]
 
 def auto_select(
     dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None = None,
-    pool: Sequence[str] | None = None, budget: Budget | None = None,
+    pool: Sequence[str] | None = None, cancel: threading.Event | None = None,
     say: Say = lambda _m: None,
 ) -> Selection:
     """Identify ``model`` (unless it is a fit already) and choose its effects from ``pool``
-    (default: every library and plug-in effect it lacks). ``budget``'s cancel is shared by every
-    search and screen of the run: :meth:`~rigctl.workbench.budget.Budget.cancel` ends the run
-    (the search running raises :class:`~rigctl.workbench.budget.SearchCancelledError`); each
-    search keeps its own default budget."""
-    shared = budget or Budget()
+    (default: every library and plug-in effect it lacks). ``cancel``, an event shared by every
+    search and screen of the run, ends it when set (the search running raises
+    :class:`~rigctl.workbench.budget.SearchCancelledError`); each search keeps its own default
+    budget."""
 
     def fit(ds: Dataset, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
         try:
             return search_model(ds, choice, workers=workers, with_uncertainty=False,
-                                starts=starts, cancel=shared.cancel_event)
+                                starts=starts, cancel=cancel)
         except (ParameterError, SimulationError) as exc:
             # a candidate that cannot be identified (no valid start, a plug-in term that fails)
             # is a failed trial, scored at an infinite error: it is never added, and an effect
@@ -54,10 +54,10 @@ def auto_select(
     def screen(ds: Dataset, fitted: FitResult, sets: Sequence[tuple[str, ...]]
                ) -> list[Screened]:
         return score_screen(ds, fitted, sets, workers=workers, say=say,
-                            budget=Budget(cancel_event=shared.cancel_event))
+                            budget=None if cancel is None else Budget(cancel_event=cancel))
 
     base = model if isinstance(model, FitResult) else search_model(
-        dataset, model, workers=workers, with_uncertainty=False, cancel=shared.cancel_event)
+        dataset, model, workers=workers, with_uncertainty=False, cancel=cancel)
     say(f"{base.choice.label()}: E {base.error:.3g}")
     fns = fn_range(dataset)
     candidates = candidate_effects(base.choice) if pool is None else list(pool)

@@ -17,7 +17,6 @@ from threading import Event
 
 from rigctl.records.dataset import Dataset, protocols_present
 from rigctl.workbench.auto import auto_select
-from rigctl.workbench.budget import Budget
 from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round, explain
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
@@ -32,7 +31,7 @@ from rigctl.workbench.ranking import (
 )
 from rigctl.workbench.residual_map import ResidualMap, discrepancies, residual_map
 from rigctl.workbench.selection import Round as SelectionRound
-from rigctl.workbench.selection import Selection, Step, Trial
+from rigctl.workbench.selection import Selection, Step, Trial, added_parameters
 
 Say = Callable[[str], None]
 FitListener = Callable[[str, FitResult], None]
@@ -50,10 +49,9 @@ def diagnose_auto(
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
         f"{len(pool)} candidate effects ...")
-    budget = Budget(cancel_event=cancel) if cancel is not None else None
     with sigterm_raises():  # SIGTERM ends the run as Ctrl-C does: every pool terminated
         sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
-                          budget=budget, say=say)
+                          cancel=cancel, say=say)
     if on_fit is not None:
         for rnd in sel.rounds:
             for t in rnd.trials:
@@ -67,9 +65,10 @@ def as_diagnosis(dataset: Dataset, sel: Selection) -> Diagnosis:
     diag.steps.append(DiagnosisStep(0, sel.base.choice.label(), None, sel.base.error, None))
     for step in sel.steps:
         _tell_step(diag, step, sel)
-    diag.rounds = [_round(dataset, r) for r in sel.rounds]
+    map_of = _Maps(dataset)
+    diag.rounds = [_round(dataset, r, map_of) for r in sel.rounds]
     if not diag.rounds or diag.rounds[-1].model is not sel.final:
-        text = unexplained_text(None, sel.final.error, _discrepancies(dataset, sel.final))
+        text = unexplained_text(None, sel.final.error, discrepancies(map_of(sel.final)))
         diag.rounds.append(Round(sel.final, [], Verdict(VerdictKind.NONE, [], None, text), {},
                                  diag.rounds[-1].discrepancies if diag.rounds else []))
     return diag
@@ -113,26 +112,38 @@ def _single_trial(sel: Selection, step: Step, effect: str) -> Trial | None:
     return None
 
 
-def _discrepancies(dataset: Dataset, model: FitResult) -> list[str]:
-    return discrepancies(_map(dataset, model))
-
-
 def _map(dataset: Dataset, model: FitResult) -> ResidualMap:
     return residual_map(dataset, evaluate(dataset, model.choice).score.comparisons)
 
 
-def _round(dataset: Dataset, rnd: SelectionRound) -> Round:
+class _Maps:
+    """Each fit's residual map, evaluated once (a round's chosen fit is the next round's model)."""
+
+    def __init__(self, dataset: Dataset) -> None:
+        self.dataset = dataset
+        self._maps: dict[int, tuple[FitResult, ResidualMap]] = {}
+
+    def __call__(self, fit: FitResult) -> ResidualMap:
+        hit = self._maps.get(id(fit))
+        if hit is None or hit[0] is not fit:
+            hit = (fit, _map(self.dataset, fit))
+            self._maps[id(fit)] = hit
+        return hit[1]
+
+
+def _round(dataset: Dataset, rnd: SelectionRound, map_of: _Maps) -> Round:
     """One forward step as a diagnosis round: the fitted sets ranked by their evidence, then the
     sets only screened (never significant: a screen is no fit), the verdict the set added."""
     model, n = rnd.model, dataset.n_events
-    base_map = _map(dataset, model)
-    fitted = [_trial_score(dataset, t, model, base_map) for t in rnd.trials]
+    base_map = map_of(model)
+    fitted = [_trial_score(t, model, base_map, map_of) for t in rnd.trials]
     done = {t.effects for t in rnd.trials}
     screened = []
     for s in rnd.screens:
         if s.effects in done or not math.isfinite(s.error):
             continue
-        sc = score_candidate(" + ".join(s.effects), model.error, s.error, n, len(s.effects))
+        sc = score_candidate(" + ".join(s.effects), model.error, s.error, n,
+                             added_parameters(model, s))
         sc.significant = False
         sc.explains = f"screened only ({s.best_at}; not fitted)"
         screened.append(sc)
@@ -145,16 +156,16 @@ def _round(dataset: Dataset, rnd: SelectionRound) -> Round:
     residual = base_disc
     if best is not None and best.error < model.error:
         trial = next(t for t in rnd.trials if t.name == best.effect)
-        residual = _discrepancies(dataset, trial.fit)
+        residual = discrepancies(map_of(trial.fit))
     v = Verdict(VerdictKind.NONE, [], None, unexplained_text(best, model.error, residual))
     return Round(model, ranking, v, {t.name: t.fit for t in rnd.trials}, base_disc)
 
 
-def _trial_score(dataset: Dataset, t: Trial, model: FitResult,
-                 base_map: ResidualMap) -> CandidateScore:
+def _trial_score(t: Trial, model: FitResult, base_map: ResidualMap,
+                 map_of: _Maps) -> CandidateScore:
     sc = t.score
     if t.fit.error < model.error:
-        sc.explains = explain(base_map, _map(dataset, t.fit), model, t.fit)
+        sc.explains = explain(base_map, map_of(t.fit), model, t.fit)
     else:
         sc.explains = "nothing (no improvement)"
     sc.values = {k: v for k, v in t.fit.choice.values.items()

@@ -182,11 +182,13 @@ def promising(model: FitResult, s: Screened, n_events: int) -> bool:
     shows (an effect whose gain lies outside its plausible ranges, or that needs the base to move
     far from the model): that is the screen's miss, and such a set is not fitted."""
     return math.isfinite(s.error) and score_candidate(
-        " + ".join(s.effects), model.error, s.error, n_events, _n_new(model, s)).significant
+        " + ".join(s.effects), model.error, s.error, n_events,
+        added_parameters(model, s)).significant
 
 
-def _n_new(model: FitResult, s: Screened) -> int:
-    """Parameters the set adds: its effects' identified parameters (at least one each)."""
+def added_parameters(model: FitResult, s: Screened) -> int:
+    """Parameters the screened set adds to ``model``: its effects' identified parameters (at least
+    one each), the count a screen is judged with."""
     n = 0
     for effect in s.effects:
         cls = effect_class(effect, model.choice.effect_files)

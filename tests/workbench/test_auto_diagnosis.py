@@ -135,3 +135,21 @@ def test_a_candidate_that_cannot_be_fitted_is_a_failed_trial_not_a_failed_run(mo
     failed = [t for r in out.rounds for t in r.trials if "b" in t.effects]
     assert failed and all(t.fit.error == float("inf") for t in failed)
     assert any("no fit" in m for m in said)
+
+
+def test_each_fit_s_residual_map_is_evaluated_once(monkeypatch):
+    mapped: list[str] = []
+
+    def counted(dataset: Any, model: FitResult) -> Any:
+        mapped.append(model.choice.label())
+        return SimpleNamespace(model=model)
+
+    monkeypatch.setattr(ad, "_map", counted)
+    base = fit((), 10.0)
+    t_a = trial(base, ("a",), 4.0)
+    t_b = trial(t_a.fit, ("a", "b"), 3.9)
+    r1 = sel.Round(base, [screened(("a",), 5.0)], [t_a], t_a)
+    r2 = sel.Round(t_a.fit, [screened(("b",), 3.95)], [t_b], None)  # the chosen fit, mapped again
+    ad.as_diagnosis(DATASET, sel.Selection(
+        base, t_a.fit, [sel.Step("add", ("a",), 10.0, 4.0, -50.0, t_a.fit)], [r1, r2]))
+    assert sorted(mapped) == sorted(["paper", "paper + a", "paper + a + b"])
