@@ -7,6 +7,7 @@ Same inputs, parameters and seed give bit-identical output.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -44,6 +45,10 @@ SimProgressFn = Callable[[float, float], None]
 
 class SlipBudgetError(SimulationError):
     """The model slipped more often than the run's ``max_slips`` allows."""
+
+
+class TimeLimitError(SimulationError):
+    """The run passed its ``deadline`` (wall clock) before it ended."""
 
 
 class Outputs(NamedTuple):
@@ -98,10 +103,14 @@ class _Integration:
         record_elements: bool,
         progress: SimProgressFn | None = None,
         max_slips: int | None = None,
+        deadline: float | None = None,
     ) -> Outputs:
         """Integrate over the knots, sampling at ``t_out``; with ``max_slips``, stop with a
         SlipBudgetError if more than that many global slips are recorded (checked whenever the
-        event table fills and at the end, so at most about twice that many are integrated)."""
+        event table fills and at the end, so at most about twice that many are integrated); with
+        ``deadline`` (a :func:`time.monotonic` value), stop with a TimeLimitError once the clock
+        passes it (checked whenever the kernel returns: after each 1 % of the span, each slip
+        whose hooks run and each growth of the event table)."""
         n_out = t_out.shape[0]
         knots = np.empty((layout.N_KROWS, kt_t.shape[0]))
         knots[layout.K_T] = kt_t
@@ -117,7 +126,8 @@ class _Integration:
         t_end = float(kt_t[-1])
         hooks = self.setup.slip_hooks
         # progress is reported at chunk boundaries of about 1 % of the span
-        chunk = max((t_end - self.fs[layout.S_T]) / 100.0, 1e-3) if progress else np.inf
+        chunk = max((t_end - self.fs[layout.S_T]) / 100.0, 1e-3) \
+            if progress or deadline is not None else np.inf
         while True:
             t_stop = min(t_end, self.fs[layout.S_T] + chunk)
             if self.terms is None:
@@ -129,6 +139,10 @@ class _Integration:
             else:
                 code = self._advance_terms(knots, t_out, out, t_stop, bool(hooks),
                                            record_elements)
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeLimitError(
+                    f"the run passed its time limit at t = {self.fs[layout.S_T]:.6g} s "
+                    f"({int(self.ist[layout.I_NEVENT])} global slips)")
             if code == layout.RET_EVENT_TABLE_FULL:
                 self._check_slips(max_slips)
                 grown = np.full((self.ev.shape[0] * 2, layout.N_ECOLS), np.nan)
@@ -284,11 +298,13 @@ class Simulator:
         record_elements: bool = True,
         progress: SimProgressFn | None = None,
         max_slips: int | None = None,
+        deadline: float | None = None,
     ) -> SimResult:
         """Simulate the whole drive; samples at k / rate for k = 0 .. duration * rate.
 
         ``max_slips`` bounds the work of a model that slips far more often than anything it is
-        compared with (:class:`SlipBudgetError`, see :meth:`_Integration.integrate`)."""
+        compared with (:class:`SlipBudgetError`), ``deadline`` (a :func:`time.monotonic` value)
+        its wall time (:class:`TimeLimitError`), see :meth:`_Integration.integrate`."""
         n_out = int(np.floor(drive.duration_s * self.sample_rate_hz + 1e-9)) + 1
         t_out = np.arange(n_out, dtype=np.float64) / self.sample_rate_hz
         integ = _Integration(self._setup, float(drive.x_stage_m[0]), float(drive.fn_N[0]))
@@ -299,7 +315,7 @@ class Simulator:
             kt_t = kt_t.copy()
             kt_t[-1] = t_out[-1]
         out = integ.integrate(kt_t, drive.x_stage_m, drive.fn_N, t_out, record_elements,
-                              progress, max_slips)
+                              progress, max_slips, deadline)
         res = integ.result(out, t_out, integ.take_events(0.0, drive.duration_s), record_elements)
         res.metadata.update(
             {"model": self.model.describe(), "sample_rate_hz": f"{self.sample_rate_hz:g}"}

@@ -48,12 +48,14 @@ def slip_budget(run: PreparedRun) -> int:
     return max(MODEL_SLIPS_MIN, MODEL_SLIPS_PER_SAMPLE * run.n_samples)
 
 
-def simulate_run(spec: ModelSpec, run: PreparedRun, bounded: bool = False) -> SimResult:
+def simulate_run(spec: ModelSpec, run: PreparedRun, bounded: bool = False,
+                 deadline: float | None = None) -> SimResult:
     """The model on the run's drive, sampled at the run's rate on the run's time base; ``bounded``
-    (the fits' evaluations): at most :func:`slip_budget` slips, else SlipBudgetError."""
+    (the fits' evaluations): at most :func:`slip_budget` slips, else SlipBudgetError;
+    ``deadline`` (a :func:`time.monotonic` value): ended by TimeLimitError once passed."""
     sim = Simulator(spec, sample_rate_hz=run.sample_rate_hz)
     res = sim.run(model_drive(run), record_elements=False,
-                  max_slips=slip_budget(run) if bounded else None)
+                  max_slips=slip_budget(run) if bounded else None, deadline=deadline)
     if run.lead_in_s <= 0.0:
         return res
     i0 = round(run.lead_in_s * run.sample_rate_hz)
@@ -79,15 +81,16 @@ class Evaluation:
 
 def evaluate(
     dataset: Dataset, model: ModelChoice | ModelSpec, keep_results: bool = False,
-    bounded: bool = False,
+    bounded: bool = False, deadline: float | None = None,
 ) -> Evaluation:
-    """Simulate and score ``model`` on ``dataset`` (``bounded``: see :func:`simulate_run`)."""
+    """Simulate and score ``model`` on ``dataset`` (``bounded``, ``deadline``: see
+    :func:`simulate_run`; one deadline for every run)."""
     spec = model.build() if isinstance(model, ModelChoice) else model
     events: list[EventTable] = []
     results: list[SimResult] = []
     images: list[dict[str, float]] = []
     for run in dataset.runs:
-        res = simulate_run(spec, run, bounded)
+        res = simulate_run(spec, run, bounded, deadline)
         events.append(read_result(res, run))
         # the model's P(i, t) over the run's frames: its stage's shares (no extra engine work)
         images.append(model_image_numbers(res, run.image) if run.image is not None else {})

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -180,6 +181,9 @@ class Objective:
         table = choice.parameter_table()
         self._at_start = {p.name: p.value for p in table}
         self._m_bounds = next((p.lower, p.upper) for p in table if p.name == "m_kg")
+        self.time_limit_s: float | None = None
+        """Wall seconds an evaluation may take (None: no limit); one that takes longer is a
+        point that cannot be run (:mod:`rigctl.workbench.search_pool` sets it)."""
 
     def values(self, u: FloatArray) -> dict[str, float]:
         """The model's values at ``u``: the free parameters, and the mass where it follows the
@@ -201,7 +205,9 @@ class Objective:
         try:
             if not physically_valid(candidate, self.fn_range):
                 raise ParameterError("mu_k >= mu_s")
-            ev = evaluate(self.dataset, candidate, bounded=True)
+            deadline = None if self.time_limit_s is None else \
+                time.monotonic() + self.time_limit_s
+            ev = evaluate(self.dataset, candidate, bounded=True, deadline=deadline)
             vec = ev.score.vector
             if misses_most_slips(self.dataset, ev.score.comparisons):
                 self._trapped.add(key)
@@ -213,7 +219,7 @@ class Objective:
                                        FAILED_FACTOR * float(np.linalg.norm(vec)))
         except SimulationError:
             # not physically valid, or cannot be run (e.g. slips far more often than the record
-            # can show: evaluate.slip_budget): the failure penalty
+            # can show: evaluate.slip_budget; or past its time limit): the failure penalty
             vec = None
         if vec is None:
             n = self._length()

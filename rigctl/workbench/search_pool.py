@@ -13,6 +13,15 @@ dataset and the model once, so a task carries only a point; each worker
   terminates the pool) and, on Linux, asks the kernel to kill it when its parent dies
   (:func:`rigctl.workbench.parallel.die_with_parent`, as the diagnosis's task processes do).
 
+**A time limit per evaluation.** Once the pool has timed an evaluation, every point is sent with a
+limit of :data:`TIME_LIMIT_FACTOR` times the median of its evaluations so far (at least
+:data:`TIME_LIMIT_FLOOR_S`); a model run that passes it is stopped
+(:class:`~rigctl.model.simulator.TimeLimitError`) and the point counts as one that cannot be run,
+as a model that slips past the record's slip budget does. The first point of a pool runs alone and
+unlimited, to time one. Each worker first runs the model for a few samples, unlimited, so that
+compiling its code (numba: a plug-in's terms, the engine's paths in a fresh cache) is not charged
+to a point.
+
 The parent waits for a batch in steps of :data:`POLL_S`, checking the budget's cancel flag
 (:meth:`~rigctl.workbench.budget.Budget.check`) between them; a cancel or Ctrl-C terminates every
 worker at once. The polish's Jacobians are batches of points like a population; the answer's final
@@ -23,12 +32,16 @@ between evaluations only.
 
 from __future__ import annotations
 
+import contextlib
+import math
 import multiprocessing
 import os
 import pickle
 import signal
+import statistics
+import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import TracebackType
 from typing import Any
 
@@ -36,11 +49,11 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from rigctl.errors import SimulationError
-from rigctl.model import ParameterError
+from rigctl.model import Drive, ParameterError, Simulator
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
-from rigctl.workbench.evaluate import evaluate
+from rigctl.workbench.evaluate import evaluate, model_drive
 from rigctl.workbench.identify import (
     FitResult,
     FreeParam,
@@ -55,6 +68,20 @@ OK, TRAPPED, FAILED = "ok", "trapped", "failed"
 POLL_S = 0.1
 """The parent checks the cancel flag this often while workers run: a cancel is seen within a tenth
 of a second, far inside the 2 s a user waits for, at no cost."""
+TIME_LIMIT_FACTOR = 20.0
+"""An evaluation may take this many times the median of the pool's evaluations so far. The
+points of one pool are one model at other values, so their costs differ by the slips they make
+(an integration is linear in them) and the path they take, not by the model; a point that costs
+twenty typical ones holds its worker for longer than a whole CMA-ES generation takes (a
+population of 4 + 3 ln n <= 13 points for the search's n <= 20 coordinates): a model that
+chatters through slips the record cannot show. Evaluated to the end, one such point has held a
+search for minutes; stopped, it is a point that cannot be run."""
+TIME_LIMIT_FLOOR_S = 2.0
+"""... and at least this long: a machine shared with other jobs delays a process by up to about a
+second (scheduling, page faults), which a short evaluation's median does not include."""
+WARM_UP_SAMPLES = 8
+"""Samples of the first run each worker simulates before its first point, to compile the model's
+code (numba) outside the points' time limits."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +91,8 @@ class Point:
 
     u: FloatArray
     n_elements: int | None = None
+    time_limit_s: float | None = None
+    """Wall seconds its evaluation may take (None: no limit; :class:`EvaluationPool` sets it)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +104,8 @@ class Outcome:
     cost: float
     status: str
     vector: FloatArray | None = None
+    elapsed_s: float = math.nan
+    """Wall seconds the evaluation took (NaN where it was stopped or failed at once)."""
 
 
 @dataclass(frozen=True)
@@ -94,8 +125,23 @@ class _Evaluator:
     def __init__(self, dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam]) -> None:
         self.dataset, self.choice, self.free = dataset, choice, list(free)
         self._objectives: dict[int | None, Objective] = {}
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """The model over the first WARM_UP_SAMPLES samples of the first run, unlimited: its
+        compiled code loaded or compiled here, not inside a point's time limit (a model that
+        cannot be run here is left to its points)."""
+        run = self.dataset.runs[0]
+        drive = model_drive(run)
+        t = np.array([drive.t_s[0], min(drive.t_s[-1],
+                                        drive.t_s[0] + WARM_UP_SAMPLES / run.sample_rate_hz)])
+        short = Drive(t - t[0], np.interp(t, drive.t_s, drive.x_stage_m),
+                      np.interp(t, drive.t_s, drive.fn_N))
+        with contextlib.suppress(SimulationError, ParameterError, ValueError):
+            Simulator(self.choice.build(), run.sample_rate_hz).run(short, record_elements=False)
 
     def __call__(self, point: Point) -> Outcome:
+        t0 = time.monotonic()
         try:
             obj = self._objectives.get(point.n_elements)
             if obj is None:
@@ -103,12 +149,14 @@ class _Evaluator:
                     self.choice.with_values({"n_elements": point.n_elements})
                 obj = self._objectives[point.n_elements] = Objective(self.dataset, choice,
                                                                      self.free)
+            obj.time_limit_s = point.time_limit_s
             vec = obj(point.u)
         except (SimulationError, ParameterError):
             return Outcome(np.inf, FAILED)
         if obj.failed(point.u):  # the vector is the failure penalty: a least-squares fit's value
             return Outcome(np.inf, FAILED, vec)
-        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec)
+        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec,
+                       time.monotonic() - t0)
 
     def finish(self, task: FinishTask) -> FitResult:
         ev = evaluate(self.dataset, task.choice)
@@ -153,6 +201,8 @@ class EvaluationPool:
                  budget: Budget, workers: int) -> None:
         self.budget, self.dataset = budget, dataset
         self.workers = max(int(workers), 0)
+        self._times: list[float] = []
+        """Wall seconds of each evaluation that ran to its end (the time limit's median)."""
         self._local = _Evaluator(dataset, choice, free) if self.workers == 0 else None
         self._pool: Any = None
         if self.workers:
@@ -180,9 +230,22 @@ class EvaluationPool:
         self._pool.join()
         self._pool = None
 
+    def time_limit_s(self) -> float | None:
+        """The wall seconds an evaluation may take now (module docstring; None before the
+        first evaluation is timed)."""
+        if not self._times:
+            return None
+        return max(TIME_LIMIT_FLOOR_S, TIME_LIMIT_FACTOR * statistics.median(self._times))
+
     def evaluate(self, points: Sequence[Point]) -> list[Outcome]:
-        """Each point's outcome, in order; each counts one evaluation of the budget. Raises
+        """Each point's outcome, in order; each counts one evaluation of the budget, each is
+        stopped at the pool's time limit (module docstring). Raises
         :class:`~rigctl.workbench.budget.SearchCancelledError` when the budget is cancelled."""
+        points = list(points)
+        if not self._times and len(points) > 1:  # time one point first, then limit the rest
+            return self.evaluate(points[:1]) + self.evaluate(points[1:])
+        limit = self.time_limit_s()
+        points = [replace(p, time_limit_s=limit) for p in points]
         self.budget.check()
         if self._local is not None:
             out = []
@@ -190,11 +253,12 @@ class EvaluationPool:
                 out.append(self._local(p))
                 self.budget.spend(1)
                 self.budget.check()
-            return out
-        pending = self._pool.map_async(_evaluate_in_worker, list(points), chunksize=1)
-        outcomes: list[Outcome] = self._wait(pending)
-        self.budget.spend(len(outcomes))
-        return outcomes
+        else:
+            pending = self._pool.map_async(_evaluate_in_worker, points, chunksize=1)
+            out = self._wait(pending)
+            self.budget.spend(len(out))
+        self._times += [o.elapsed_s for o in out if math.isfinite(o.elapsed_s)]
+        return out
 
     def finish(self, task: FinishTask) -> FitResult:
         """The answer of ``task`` (and its uncertainties); its evaluations count in the budget."""

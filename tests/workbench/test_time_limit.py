@@ -1,0 +1,67 @@
+"""A point whose evaluation takes far longer than the search's typical one is stopped and counts
+as a point that cannot be run (search_pool.TIME_LIMIT_FACTOR): one chattering model run must not
+hold a search for minutes. The limit is the pool's own measure (a median of its evaluations), so
+the tests set its factor and floor, not the machine's speed."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from rigctl.model import Drive, Simulator, build_model
+from rigctl.model.simulator import TimeLimitError
+from rigctl.records.dataset import prepare_dataset
+from rigctl.workbench import search_pool as sp
+from rigctl.workbench.budget import Budget
+from rigctl.workbench.campaigns import simulate_campaign
+from rigctl.workbench.identify import free_params
+from rigctl.workbench.model_choice import ModelChoice
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    return prepare_dataset(simulate_campaign(build_model("paper"), "tlre", seed=4,
+                                             duration_scale=0.25))
+
+
+def test_a_run_past_its_deadline_stops_with_a_clear_error():
+    sim = Simulator(build_model("paper"), sample_rate_hz=1024.0)
+    drive = Drive.constant(300.0, 1e-5, 5.0)
+    assert sim.run(drive, record_elements=False, deadline=time.monotonic() + 600.0).n_samples > 0
+    with pytest.raises(TimeLimitError, match=r"time limit at t = .* global slips"):
+        sim.run(drive, record_elements=False, deadline=time.monotonic() - 1.0)
+
+
+def _points(dataset, n):
+    choice = ModelChoice("paper")
+    free = free_params(choice, ["mu_s", "mu_k"])
+    table = {p.name: p.value for p in choice.parameter_table()}
+    u = np.array([fp.to_u(table[fp.name]) for fp in free])
+    return choice, free, [sp.Point(u * (1.0 + 1e-4 * i)) for i in range(n)]
+
+
+@pytest.mark.parametrize("workers", [0, 1])
+def test_the_first_point_is_timed_alone_and_a_slower_one_is_not_run_to_its_end(
+        dataset, monkeypatch, workers):
+    choice, free, points = _points(dataset, 3)
+    with sp.EvaluationPool(dataset, choice, free, Budget(), workers) as pool:
+        assert pool.time_limit_s() is None  # nothing timed yet: no limit
+        monkeypatch.setattr(sp, "TIME_LIMIT_FLOOR_S", 0.0)
+        monkeypatch.setattr(sp, "TIME_LIMIT_FACTOR", 1e-6)  # any later run is "too slow"
+        first, *rest = pool.evaluate(points)
+        assert first.status == sp.OK and math.isfinite(first.elapsed_s)
+        assert all(o.status == sp.FAILED and o.cost == math.inf for o in rest)
+        assert pool.time_limit_s() == pytest.approx(1e-6 * first.elapsed_s)
+
+
+def test_the_limit_is_the_factor_times_the_median_and_never_below_the_floor(dataset):
+    choice, free, points = _points(dataset, 3)
+    with sp.EvaluationPool(dataset, choice, free, Budget(), 0) as pool:
+        out = pool.evaluate(points)
+        assert all(o.status == sp.OK for o in out)  # the default limit stops no ordinary point
+        median = float(np.median([o.elapsed_s for o in out]))
+        assert pool.time_limit_s() == pytest.approx(
+            max(sp.TIME_LIMIT_FLOOR_S, sp.TIME_LIMIT_FACTOR * median))
