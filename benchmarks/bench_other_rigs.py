@@ -13,7 +13,8 @@ to 1.6 times the rig's own load where the effects need them) at a drive velocity
 3 s per stick cycle. A case hides nothing (control), two effects, one, or two (cycling in that
 order), each at its typical magnitude (default minus off value, ``scales_with`` quantities carried
 to the rig: the same rule the workbench uses for its starting values, applied here to make the
-truth, with the magnitude drawn in [0.7, 1.5]).
+truth, with the magnitude drawn in [0.7, 1.5]), its shape parameters drawn within a factor
+SHAPE_FACTOR of their typical values.
 
 A case is a **hit** when ``--auto`` adds exactly the hidden effects (either order) and ends at most
 at half the baseline error (a control: adds nothing). Each case also gives ``truth_error``, what the
@@ -89,7 +90,16 @@ def _scale_of(rig: dict[str, float], v: float) -> DataScale:
                      stick_s=drop / keff / v)
 
 
-def hidden_values(effect: str, rig: dict[str, float], v: float, magnitude: float) -> dict[str, float]:
+SHAPE_FACTOR = 2.0
+"""A shape parameter of a hidden effect (one whose off value is its library default: it switches
+nothing on, it shapes what the others switch on, a Stribeck exponent, a characteristic slip
+distance, a wear length) is drawn log-uniformly within this factor of its typical value at the
+rig's scale: other labs' laws have other shapes (Stribeck exponents 0.5 to 2, Armstrong-Helouvry
+et al. 1994), which the workbench must represent, not assume."""
+
+
+def hidden_values(effect: str, rig: dict[str, float], v: float, magnitude: float,
+                  rng: np.random.Generator) -> dict[str, float]:
     eff = LIBRARY[effect]()
     offs = eff.off_values({"mu_s": rig["mu_s"], "kts_N_per_m": rig["kts_N_per_m"]})
     ratios = scale_ratios(_scale_of(rig, v), rig, SAMPLE_RATE_HZ)
@@ -98,8 +108,12 @@ def hidden_values(effect: str, rig: dict[str, float], v: float, magnitude: float
         default = p.default
         if p.scales_with and math.isfinite(ratios.get(p.scales_with, math.nan)):
             default = p.default * ratios[p.scales_with]
-        off = offs[p.name] if p.identify else default
-        value = off + magnitude * (default - off) if p.identify else default
+        if not p.identify:
+            value = default
+        elif p.off == p.default:  # a shape parameter
+            value = default * SHAPE_FACTOR ** float(rng.uniform(-1.0, 1.0))
+        else:
+            value = offs[p.name] + magnitude * (default - offs[p.name])
         out[p.name] = float(min(max(value, p.lower), p.upper))
     return out
 
@@ -193,7 +207,7 @@ def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str
     keff = 1.0 / (1.0 / rig["k0_N_per_m"] + 1.0 / rig["kts_N_per_m"])
     drop = 2.0 * (rig["mu_s"] - rig["mu_k"]) * rig["fn_N"]
     v = drop / keff / 3.0  # about 3 s per stick cycle
-    values = {e: hidden_values(e, rig, v, float(rng.uniform(0.7, 1.5))) for e in hidden}
+    values = {e: hidden_values(e, rig, v, float(rng.uniform(0.7, 1.5)), rng) for e in hidden}
     params = {k: val for k, val in rig.items() if k != "fn_N"}
     model = build_model("paper", effects=list(hidden), params=params, effect_params=values)
     f = noise_factor

@@ -27,7 +27,7 @@ class RateState(Effect):
         ParamSpec("a", 0.002, 0.0, 0.1, "-", "direct effect a", off=0.0),
         ParamSpec("b", 0.004, 0.0, 0.1, "-", "evolution (aging) effect b", off=0.0),
         ParamSpec("dc_m", 1e-6, 1e-9, 1e-3, "m", "characteristic slip distance D_c",
-                  identify=False, off=1e-6, scales_with="slip_length"),
+                  off=1e-6, scales_with="slip_length"),
         ParamSpec("v_ref_m_per_s", 1e-5, 1e-9, 1.0, "m/s", "reference velocity V_ref",
                   identify=False, off=1e-5, scales_with="drive_velocity"),
         ParamSpec("theta0_s", 10.0, 0.0, 1e6, "s", "state (contact age) at the start of the run",

@@ -30,7 +30,7 @@ class Stribeck(Effect):
     params = (
         ParamSpec("vs_m_per_s", 5e-3, 0.0, 10.0, "m/s", "Stribeck velocity v_s", off=0.0,
                   scales_with="slip_velocity"),
-        ParamSpec("d", 1.0, 0.2, 4.0, "-", "Stribeck exponent d", identify=False, off=1.0),
+        ParamSpec("d", 1.0, 0.2, 4.0, "-", "Stribeck exponent d", off=1.0),
     )
 
     def apply(self, core: CoreParams, values: Mapping[str, float]) -> None:

@@ -25,7 +25,7 @@ class Wear(Effect):
     params = (
         ParamSpec("dmu_s", 0.02, -0.5, 0.5, "-", "asymptotic change of mu_s", off=0.0),
         ParamSpec("dmu_k", 0.02, -0.5, 0.5, "-", "asymptotic change of mu_k", off=0.0),
-        ParamSpec("s_wear_m", 3e-4, 1e-6, 1.0, "m", "wear length s_w", identify=False,
+        ParamSpec("s_wear_m", 3e-4, 1e-6, 1.0, "m", "wear length s_w",
                   off=3e-4, scales_with="slip_length"),
     )
 
