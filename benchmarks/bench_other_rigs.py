@@ -17,7 +17,9 @@ truth, with the magnitude drawn in [0.7, 1.5]), its shape parameters drawn withi
 SHAPE_FACTOR of their typical values.
 
 A case is a **hit** when ``--auto`` adds exactly the hidden effects (either order) and ends at most
-at half the baseline error (a control: adds nothing). Each case also gives ``truth_error``, what the
+at half the baseline error (a control: adds nothing); else **indistinguishable** when it stopped
+because the data cannot decide between sets (``truth_among_undecided``: one of them completes the
+hidden set), else **wrong**. Each case also gives ``truth_error``, what the
 generating model itself scores on the case's data (the floor a fit is judged against). Figures are
 printed per case and summed; nothing asserts a time.
 """
@@ -45,6 +47,7 @@ from rigctl.workbench.data_scale import DataScale, scale_ratios
 from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.ranking import VerdictKind
 
 HIDEABLE = tuple(e for e in LIBRARY
                  if e not in ("stress_evolution", "probe_drift", "interface_damping"))
@@ -177,7 +180,16 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str
     final = [e for e in diag.final_model.choice.effects]
     base_err, final_err = diag.steps[0].error, diag.final_model.error
     hit = sorted(final) == sorted(hidden) and (not hidden or final_err <= 0.5 * base_err)
+    last = diag.rounds[-1].verdict
+    undecided = last.kind is VerdictKind.INDISTINGUISHABLE
+    # an undecided answer is right to be undecided when a contender, added to the final model,
+    # would make exactly the hidden set
+    fair = undecided and any(sorted({*final, *c.split(" + ")}) == sorted(hidden)
+                             for c in last.candidates)
+    answer = "hit" if hit else ("indistinguishable" if undecided else "wrong")
     return {"case": i, "hidden": list(hidden), "final": final, "added": added,
+            "answer": answer, "undecided_between": last.candidates if undecided else [],
+            "truth_among_undecided": fair,
             "rate_hz": drawn["rate_hz"], "noise_factor": drawn["noise_factor"],
             "removed": removed, "baseline_error": base_err, "final_error": final_err,
             "hit": hit, "wall_s": wall, "n_events": ds.n_events, "truth_error": truth_err,
@@ -248,7 +260,9 @@ def main(argv: list[str] | None = None) -> int:
     results = run_cases(lambda i: run_case(i, args.seed, args.workers, args.verbose),
                         args.first, args.cases, args.jsonl)
     hits = sum(r["hit"] for r in results)
-    print(f"hits {hits}/{len(results)}; wall {sum(r['wall_s'] for r in results):.0f} s",
+    undecided = sum(r["answer"] == "indistinguishable" for r in results)
+    print(f"hits {hits}/{len(results)}, indistinguishable {undecided}, wrong "
+          f"{len(results) - hits - undecided}; wall {sum(r['wall_s'] for r in results):.0f} s",
           file=sys.stderr)
     return 0
 

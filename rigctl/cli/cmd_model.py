@@ -300,7 +300,13 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
             print(f"  {st.index}: {st.model:46s} error {st.error:8.3g}{fall}  {bar}{note}")
             prev = st.error
         last = diag.rounds[-1].verdict
-        print("  stopped: " + ("nothing significant left" if last.kind is VerdictKind.NONE else
-                               "step limit reached"))
+        if last.kind is VerdictKind.INDISTINGUISHABLE:
+            print(f"  stopped: the data cannot decide between {' and '.join(last.candidates)}")
+            print(f"  to tell them apart: {last.suggest}")
+            for run in last.runs:
+                print(f"    {run['command']}    (reveals {run['reveals']})")
+        else:
+            print("  stopped: " + ("nothing significant left" if last.kind is VerdictKind.NONE
+                                   else "step limit reached"))
         if last.unexplained:
             print(f"  {last.unexplained}")

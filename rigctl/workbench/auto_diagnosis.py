@@ -17,7 +17,7 @@ from threading import Event
 
 from rigctl.records.dataset import Dataset, protocols_present
 from rigctl.workbench.auto import auto_select
-from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round, explain
+from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round, explain, rig_fn
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
@@ -27,6 +27,8 @@ from rigctl.workbench.ranking import (
     Verdict,
     VerdictKind,
     score_candidate,
+    suggest_protocol,
+    suggest_runs,
     unexplained_text,
 )
 from rigctl.workbench.residual_map import ResidualMap, discrepancies, residual_map
@@ -151,6 +153,14 @@ def _round(dataset: Dataset, rnd: SelectionRound, map_of: _Maps) -> Round:
     base_disc = discrepancies(base_map)
     if rnd.chosen is not None:
         v = Verdict(rnd.chosen.name, [], None)
+        return Round(model, ranking, v, {t.name: t.fit for t in rnd.trials}, base_disc)
+    if rnd.undecided:
+        names = [t.name for t in rnd.undecided]
+        effects = list(dict.fromkeys(e for t in rnd.undecided for e in t.effects))
+        files = model.choice.effect_files
+        v = Verdict(VerdictKind.INDISTINGUISHABLE, names,
+                    suggest_protocol(effects, files, protocols_present(dataset)),
+                    runs=suggest_runs(effects, files, rig_fn(dataset)))
         return Round(model, ranking, v, {t.name: t.fit for t in rnd.trials}, base_disc)
     best = min(fitted, key=lambda s: s.error, default=None)
     residual = base_disc

@@ -127,7 +127,12 @@ class Diagnosis:
             out["steps"] = [s.to_json() for s in self.steps]
             out["final_model"] = self.final_model.choice.label()
             out["final_error"] = self.final_model.error
-            out["final_unexplained"] = self.rounds[-1].verdict.unexplained
+            last = self.rounds[-1].verdict
+            out["final_unexplained"] = last.unexplained
+            out["final_verdict"] = last.verdict
+            out["final_candidates"] = last.candidates
+            out["final_suggest"] = last.suggest
+            out["final_suggest_runs"] = last.runs
         return out
 
 
@@ -307,7 +312,7 @@ def run_round(
     ranked = rank(scores)
     v = verdict(ranked, model.choice.effect_files, protocols_present(dataset))
     if v.runs:
-        v.runs = suggest_runs(v.candidates, model.choice.effect_files, _rig_fn(dataset))
+        v.runs = suggest_runs(v.candidates, model.choice.effect_files, rig_fn(dataset))
     base_disc = discrepancies(base_map)
     best = next((s for s in ranked if s.significant), None)
     if best is None:
@@ -376,7 +381,7 @@ def diagnose(
     return diag
 
 
-def _rig_fn(dataset: Dataset) -> float | None:
+def rig_fn(dataset: Dataset) -> float | None:
     """The campaign's median normal force where this rig can apply it (suggested runs are runs of
     this rig: a record of another rig at 20 kN gets the protocol's own default)."""
     fns = [float(np.median(r.drive.fn_N)) for r in dataset.runs]

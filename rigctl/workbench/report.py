@@ -11,6 +11,7 @@ from rigctl.records.feature_info import FEATURES
 from rigctl.workbench import plots
 from rigctl.workbench.compare import Comparison
 from rigctl.workbench.diagnose import Diagnosis
+from rigctl.workbench.ranking import VerdictKind
 
 _STYLE = """<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse;font-size:0.9em}td,th{border:1px solid #ccc;padding:3px 8px}
@@ -181,6 +182,14 @@ def write_diagnose_report(diag: Diagnosis, cmp: Comparison, folder: str | Path,
         _table(["effect", "error", "error reduction", "delta BIC", "significant", "explains"],
                rows),
     ]
+    last = diag.rounds[-1].verdict
+    if len(diag.rounds) > 1 and last.kind is VerdictKind.INDISTINGUISHABLE:
+        body.append(f"<p><b>Stopped: the data cannot decide between "
+                    f"{html.escape(' and '.join(last.candidates))}.</b> To tell them apart: "
+                    f"{html.escape(last.suggest or '')}</p>")
+        if last.runs:
+            body.append("<pre>" + "\n".join(html.escape(str(r["command"])) for r in last.runs)
+                        + "</pre>")
     if len(diag.steps) > 1:
         fall = plots.error_fall([s.model for s in diag.steps], [s.error for s in diag.steps],
                                 out / "error_fall.png")

@@ -26,12 +26,18 @@ One step:
 5. **Add** the best significant single; a pair instead only where it is significant against that
    single (or against the model, where no single is): forward selection takes two effects at once
    only where the data demand both.
+6. **Or say the data cannot decide**: where another significant set, not nested in the chosen one
+   nor containing it, is within INDISTINGUISHABLE_DELTA_BIC (6, "strong" evidence on Kass &
+   Raftery's scale, the ranking's rule) of the chosen set's delta BIC, the data do not tell them
+   apart. Nothing is added, and the step's contenders are reported as indistinguishable with the
+   runs that would reveal each (:attr:`Round.undecided`). A nested set is no contender: between an
+   effect and a pair containing it, the pair rule of 5 decides.
 
-Steps repeat until nothing is significant (or ``max_steps``). Then **backward elimination**: each
-effect of the final model is refitted out (the model without it, from the final values); an effect
-whose removal is not significantly worse by the same rule goes, the weakest first, until every
-effect left earns its place. Forward and backward use one rule, so a model the procedure returns
-is one from which no single addition or removal is significant.
+Steps repeat until nothing is significant, the data cannot decide (or ``max_steps``). Then
+**backward elimination**: each effect of the final model is refitted out (the model without it,
+from the final values); an effect whose removal is not significantly worse by the same rule goes,
+the weakest first, until every effect left earns its place. Forward and backward use one rule, so
+a model the procedure returns is one from which no single addition or removal is significant.
 
 Everything that fits or screens is injected (``fit``: ``(dataset, choice, starts=) ->
 FitResult``; ``screen``: ``(dataset, model, sets) -> [Screened]``), so the procedure is
@@ -54,7 +60,7 @@ from rigctl.workbench.model_choice import (
     with_effects,
     without_effect,
 )
-from rigctl.workbench.ranking import CandidateScore, score_candidate
+from rigctl.workbench.ranking import INDISTINGUISHABLE_DELTA_BIC, CandidateScore, score_candidate
 from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.screening import Screened
 
@@ -123,12 +129,15 @@ class Step:
 class Round:
     """One forward step's evidence: the model it started from, every screen (singles and pairs,
     best first), the sets fitted fully (none where no screen was significant) and the set added
-    (None: nothing significant, or the model refitted and the step repeated)."""
+    (None: nothing significant, the data cannot decide, or the model refitted and the step
+    repeated)."""
 
     model: FitResult
     screens: list[Screened]
     trials: list[Trial]
     chosen: Trial | None
+    undecided: tuple[Trial, ...] = ()
+    """The sets the data cannot tell apart (module docstring, 6), best first; empty otherwise."""
 
 
 @dataclass
@@ -232,6 +241,17 @@ def forward_step(
     return best_single, trials, screens
 
 
+def contenders(chosen: Trial, trials: Sequence[Trial]) -> tuple[Trial, ...]:
+    """``chosen`` and the significant trials the data cannot tell from it (module docstring, 6):
+    within INDISTINGUISHABLE_DELTA_BIC of its delta BIC and not nested with it; empty where there
+    are none."""
+    mine = set(chosen.effects)
+    close = [t for t in trials if t is not chosen and t.score.significant
+             and not (set(t.effects) <= mine or mine <= set(t.effects))
+             and t.score.delta_bic - chosen.score.delta_bic < INDISTINGUISHABLE_DELTA_BIC]
+    return (chosen, *sorted(close, key=lambda t: t.score.delta_bic)) if close else ()
+
+
 def backward_elimination(
     dataset: Dataset, model: FitResult, *, fit: FitFn, protected: Sequence[str], say: Say,
 ) -> tuple[FitResult, list[Step]]:
@@ -301,6 +321,7 @@ def select_effects(
             break
         chosen, trials, screens = forward_step(dataset, model, pool, fit=fit, screen=screen,
                                                say=say)
+        undecided = contenders(chosen, trials) if chosen is not None else ()
         again = None if error_of is None else unfinished_model(dataset, model, trials,
                                                                 error_of=error_of)
         if again is not None:
@@ -314,6 +335,11 @@ def select_effects(
                 model = refit
                 continue
         steps += 1
+        if undecided:
+            say("  the data cannot decide between " + " and ".join(t.name for t in undecided)
+                + ": nothing added")
+            sel.rounds.append(Round(model, screens, trials, None, undecided))
+            break
         sel.rounds.append(Round(model, screens, trials, chosen))
         if chosen is None:
             break

@@ -153,3 +153,19 @@ def test_each_fit_s_residual_map_is_evaluated_once(monkeypatch):
     ad.as_diagnosis(DATASET, sel.Selection(
         base, t_a.fit, [sel.Step("add", ("a",), 10.0, 4.0, -50.0, t_a.fit)], [r1, r2]))
     assert sorted(mapped) == sorted(["paper", "paper + a", "paper + a + b"])
+
+
+def test_an_undecided_step_is_an_indistinguishable_verdict_with_the_runs_that_reveal_each():
+    base = fit((), 10.0)
+    t_s, t_r = trial(base, ("stribeck",), 4.0), trial(base, ("rate_state",), 4.02)
+    rnd = sel.Round(base, [screened(("stribeck",), 4.5), screened(("rate_state",), 4.6)],
+                    [t_s, t_r], None, (t_s, t_r))
+    diag = ad.as_diagnosis(DATASET, sel.Selection(base, base, [], [rnd]))
+    v = diag.rounds[-1].verdict
+    assert v.kind is VerdictKind.INDISTINGUISHABLE
+    assert v.candidates == ["stribeck", "rate_state"]
+    assert "velocity steps" in (v.suggest or "") and "slide-hold-slide" in (v.suggest or "")
+    assert {r["protocol"] for r in v.runs} == {"velocity_steps", "slide_hold_slide"}
+    js = diag.to_json(True)
+    assert js["final_verdict"] == "indistinguishable" and js["final_model"] == "paper"
+    assert js["final_candidates"] == ["stribeck", "rate_state"]

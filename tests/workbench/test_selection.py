@@ -235,3 +235,21 @@ def test_each_full_fit_and_refit_says_how_far_its_part_is():
     assert fitted and fitted[0].endswith("left in this round]") and "[1/" in fitted[0]
     assert fitted[-1].endswith(f"[{len(fitted)}/{len(fitted)}]")
     assert any(m.strip().startswith("without a") and m.endswith("[1/1]") for m in said)
+
+
+def test_two_sets_the_data_cannot_tell_apart_are_reported_and_neither_is_added():
+    # "a" and "b" each remove 60 % of the error, 2 apart in delta BIC (under 6): no name is forced
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 4.02, S("a", "b"): 3.99})
+    out = _select(t)
+    assert out.steps == [] and out.final is out.base
+    (rnd,) = out.rounds
+    assert rnd.chosen is None
+    assert [x.effects for x in rnd.undecided] == [("a",), ("b",)]
+
+
+def test_a_runner_up_well_behind_or_nested_is_no_contender():
+    # "b" 20 apart in delta BIC: decided; the pair a + b contains "a": the pair rule decides
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 4.2, S("a", "b"): 3.99})
+    out = _select(t)
+    assert out.steps[0].effects == ("a",)
+    assert all(not r.undecided for r in out.rounds)

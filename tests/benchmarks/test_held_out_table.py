@@ -1,0 +1,49 @@
+"""benchmarks/held_out_table.py: the validation table of a held-out run, from its JSON lines."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchmarks.held_out_table import interval, load, main, table
+
+
+def _case(i, hidden, final, answer, wall, **kw):
+    return {"case": i, "hidden": hidden, "final": final, "hit": answer == "hit", "answer": answer,
+            "baseline_error": 10.0, "final_error": 3.0, "truth_error": 2.5, "wall_s": wall, **kw}
+
+
+def test_the_interval_is_clopper_pearson():
+    lo, hi = interval(4, 4)
+    assert lo == pytest.approx(0.025 ** 0.25, abs=1e-9) and hi == 1.0  # (alpha / 2)^(1/n)
+    lo, hi = interval(0, 6)
+    assert lo == 0.0 and hi == pytest.approx(1.0 - 0.025 ** (1 / 6), abs=1e-9)
+
+
+def test_the_page_counts_hits_undecided_and_wrong_apart(tmp_path):
+    lines = [_case(0, [], [], "hit", 30.0), _case(1, ["a", "b"], ["a"], "wrong", 300.0),
+             _case(2, ["c"], [], "indistinguishable", 100.0, undecided_between=["c", "d"],
+                   truth_among_undecided=True),
+             _case(3, ["a", "b"], ["b", "a"], "hit", 200.0)]
+    path = tmp_path / "r.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    page = table(load([str(path)]), "Seed 9")
+    assert page.startswith("# Seed 9")
+    assert "**Hits: 2 of 4** (50 %" in page.replace("50%", "50 %")
+    assert "Indistinguishable (the data could not decide; counted apart): 1, of which the hidden " \
+           "set was among the contenders in 1. Wrong names: 1." in page
+    assert "controls 1/1; one effect 0/1; two effects 1/2" in page
+    assert "median 150 s, worst 300 s" in page
+    assert "| 2 | c | - | indistinguishable (c / d) |" in page
+    out = tmp_path / "t.md"
+    assert main([str(path), "--title", "Seed 9", "--out", str(out)]) == 0
+    assert out.read_text() == page
+
+
+def test_a_case_run_again_keeps_its_last_line(tmp_path):
+    a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
+    a.write_text(json.dumps(_case(0, [], ["x"], "wrong", 10.0)) + "\n")
+    b.write_text(json.dumps(_case(0, [], [], "hit", 12.0)) + "\n")
+    (case,) = load([str(a), str(b)])
+    assert case["answer"] == "hit"
