@@ -44,8 +44,10 @@ def test_modbus_drive_can_forces_and_camera_follow_one_stick_slip_rig() -> None:
 
         dev.daq.start()
         m = dev.daq.channel_map
-        k_move = sim.rig.k
         dev.tangential_stage.enable()
+        k_move = sim.rig.k  # at rest until the move below: the rig's record of it starts here
+        # (taken after enabling: on a loaded machine a command's wall-time delay is up to 20 times
+        # that in rig time, and the rig's ring keeps only ~24 s of it)
         dev.tangential_stage.move_relative(0.4e-3, 10e-6)  # 10 um/s for 40 s (2 s at 20x)
         t_moved_s = sim.rig.t_s  # the move runs from this rig time at the latest
         ft_parts: list[np.ndarray] = []
