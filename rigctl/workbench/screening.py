@@ -51,7 +51,7 @@ from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.search import SearchState
 from rigctl.workbench.search_pool import OK, EvaluationPool
-from rigctl.workbench.search_space import SearchSpace, build_space
+from rigctl.workbench.search_space import SearchSpace, build_space, effects_at_data_scale
 
 Say = Callable[[str], None]
 
@@ -144,7 +144,7 @@ class _SetScreen:
     def __init__(self, dataset: Dataset, model: FitResult, effects: tuple[str, ...],
                  budget: Budget, workers: int, seed: int) -> None:
         self.dataset, self.model, self.effects, self.seed = dataset, model, effects, seed
-        choice = with_effects(model.choice, effects)
+        choice = effects_at_data_scale(dataset, with_effects(model.choice, effects), effects)
         self.choice: ModelChoice = choice
         self.space = build_space(dataset, choice, choice,
                                  spreads_elements(choice)).switching_off(effects)

@@ -91,7 +91,7 @@ from rigctl.workbench.search_pool import (
     FinishTask,
     Outcome,
 )
-from rigctl.workbench.search_space import SearchSpace, build_space
+from rigctl.workbench.search_space import SearchSpace, build_space, effects_at_data_scale
 
 MIN_GENERATIONS = 10
 """Default budget, a cap the search rarely reaches (it ends where it stops gaining): at least this
@@ -152,10 +152,12 @@ def search_model(
     check_names(rig, [p.name for p in choice.parameter_table()])
     if rig.fixed:
         choice = choice.with_values(rig.fixed)
+    added = added_effects(choice)
+    choice = effects_at_data_scale(dataset, choice, added)
     identify_free = free_params(choice, rig=rig)
     scaled = data_scaled(dataset, choice, identify_free)
     space = build_space(dataset, choice, scaled or choice,
-                        spreads_elements(choice)).switching_off(added_effects(choice))
+                        spreads_elements(choice)).switching_off(added)
     fns = fn_range(dataset)
     # an effect being added is searched from off too: its library defaults may make the given
     # start invalid (a load-dependent friction whose default slope takes mu_k above mu_s at the

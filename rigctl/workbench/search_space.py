@@ -241,6 +241,38 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
                        off, follows)
 
 
+def effects_at_data_scale(dataset: Dataset, choice: ModelChoice,
+                          effects: Collection[str]) -> ModelChoice:
+    """``choice`` with the fixed dimensional parameters of ``effects`` (``identify=False`` with a
+    ``scales_with`` quantity: a reference load, a reference velocity, a contact age) carried to the
+    data's scale as :func:`~rigctl.workbench.data_scale.scale_effect_values` carries them (only
+    where the data lie more than a factor NEAR_PRESET from the preset), except what the rig
+    description fixes.
+
+    No coordinate of the search moves these, so a library default at the preset's scale stays
+    wrong by the scale ratio: a power law of the load referred to the preset's 300 N on a 10 N rig
+    multiplies the friction levels by (10/300)^alpha, a factor of 4 at alpha 0.4, which the base's
+    levels would have to undo before the effect could show its gain. At their off values the
+    effects leave every output unchanged whatever these are, so the model without them is the
+    same model."""
+    if not effects:
+        return choice
+    scale = campaign_scale(dataset)
+    if not scale.usable:
+        return choice
+    prefixes = tuple(f"{e}." for e in effects)
+    table = [(p.name, p.value, p.lower, p.upper, p.scales_with)
+             for p in choice.parameter_table()
+             if p.name.startswith(prefixes) and p.scales_with and not p.identify
+             and p.name not in dataset.rig.fixed]
+    if not table:
+        return choice
+    base = {p.name: p.value for p in choice.parameter_table() if "." not in p.name}
+    rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
+    changed = scale_effect_values(table, scale_ratios(scale, base, rate))
+    return choice.with_values(changed) if changed else choice
+
+
 def effect_ranges(dataset: Dataset, choice: ModelChoice,
                   free: list[FreeParam]) -> dict[str, tuple[float, float, float, float]]:
     """Each free effect parameter's plausible range (lower, upper) in parameter units, its
