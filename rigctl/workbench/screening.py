@@ -19,8 +19,12 @@ re-fitted *linearly*, from a handful of evaluations of the model with the set ad
    :meth:`~rigctl.workbench.search.SearchState.metric` ranks starts), is *evaluated*, and its
    residual profiled over the base. Its gain predicted to first order, |r_0|^2 - |r_0 + G d|^2,
    is the score statistic (in squared scatter units, the unit of the residual).
-3. **Spread points.** An effect whose influence vanishes smoothly at off (a Stribeck velocity
-   going to 0) has no slope there, so no score: :data:`SPREAD_POINTS` scrambled Sobol points over
+3. **The typical size and spread points.** An effect whose influence vanishes smoothly at off (a
+   Stribeck velocity going to 0) has no slope there, so no score; and on a record whose slips
+   shift with the least change of a parameter the residual is rough at a finite difference's
+   scale, so the score can point anywhere. The set at its typical size (its library defaults at
+   the data's scale, :func:`~rigctl.workbench.search_space.typical_point`, the centre of its
+   prior) and :data:`SPREAD_POINTS` scrambled Sobol points over
    the plausible ranges of the set's coordinates (:class:`~rigctl.workbench.search_space.
    SearchSpace`, the same ranges a full fit spreads its starts over), the base at the model's
    values, each evaluated and profiled over the base.
@@ -28,7 +32,7 @@ re-fitted *linearly*, from a handful of evaluations of the model with the set ad
 A set's screened error is the lowest profiled cost over its points (the model itself included:
 a set that helps nowhere screens at the model's error), as an error E (|r|^2 = n E^2, n fixed by
 the model's own pair). Every screened cost is that of an evaluated residual; only the base's
-re-fit is linear. Costs: 1 + SPREAD_POINTS + about 1-3 evaluations per on-coordinate + 1 per set,
+re-fit is linear. Costs: 2 + SPREAD_POINTS + about 1-3 evaluations per on-coordinate + 1 per set,
 against a short search's tens. The point where it was found, with the base moved by the damped
 Gauss-Newton step the profile assumes, is the set's start for its full fit (:attr:`Screened.start`).
 """
@@ -51,7 +55,12 @@ from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.search import SearchState
 from rigctl.workbench.search_pool import OK, EvaluationPool
-from rigctl.workbench.search_space import SearchSpace, build_space, effects_at_data_scale
+from rigctl.workbench.search_space import (
+    SearchSpace,
+    build_space,
+    effects_at_data_scale,
+    typical_point,
+)
 
 Say = Callable[[str], None]
 
@@ -77,7 +86,8 @@ class Screened:
     on-coordinates at off, in squared scatter units (0 where it has none)."""
     evaluations: int
     best_at: str
-    """Where the screened error was found: ``off``, ``score step`` or ``spread point``."""
+    """Where the screened error was found: ``off``, ``score step``, ``typical size`` or
+    ``spread point``."""
     start: ModelChoice | None = None
     """The model with the set added at the point where the screened error was found, its base
     moved by the linear re-fit that point's profile assumes (:meth:`BaseMetric.step`): a start for
@@ -162,6 +172,8 @@ class _SetScreen:
                             self.workers) as pool:
             search = SearchState(self.space, pool, self.budget, self.seed, False)
             spread = self._spread_points()
+            typical = self._typical_point()
+            spread = [*typical, *spread]
             outcomes = search.evaluate([self.x0, *spread])
             o0 = outcomes[0]
             if o0.status != OK or o0.vector is None:
@@ -175,8 +187,9 @@ class _SetScreen:
                                        [self.space.free[i].name for i in self.base])
             Q = metric.Q
             found = [(profiled_cost(r0, Q), "off", self.x0, r0)]
-            found += [(profiled_cost(o.vector, Q), "spread point", x, o.vector)
-                      for x, o in zip(spread, outcomes[1:], strict=True)
+            found += [(profiled_cost(o.vector, Q), "typical size" if k < len(typical)
+                       else "spread point", x, o.vector)
+                      for k, (x, o) in enumerate(zip(spread, outcomes[1:], strict=True))
                       if o.status == OK and o.vector is not None]
             score = 0.0
             if self.on:
@@ -208,6 +221,15 @@ class _SetScreen:
             x[i] += d
         x = np.clip(x, self.space.lower, self.space.upper)
         return self.choice.with_values(self.space.values(x))
+
+    def _typical_point(self) -> list[FloatArray]:
+        """The set at its typical size (:func:`~rigctl.workbench.search_space.typical_point`),
+        the base at the model's values: none where that is the off point."""
+        typical = typical_point(self.dataset, self.choice, self.effects)
+        if typical is None:
+            return []
+        x = self.space.vector(typical)
+        return [] if np.array_equal(x, self.x0) else [x]
 
     def _spread_points(self) -> list[FloatArray]:
         idx = [i for i in self.coords if i in self.space.spread]

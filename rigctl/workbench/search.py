@@ -10,7 +10,8 @@ and the ranking without ``--auto`` still call :func:`rigctl.workbench.fitting.id
    log2 of the element count where an effect spreads the elements' thresholds; each coordinate with
    an initial standard deviation, a quarter of where its optimum is expected.
 2. **Starts**: the model's current values, the same at the data's scale
-   (:func:`~rigctl.workbench.fitting.data_scaled`) and the ratio guess
+   (:func:`~rigctl.workbench.fitting.data_scaled`), the effects being added at their typical size
+   (:func:`~rigctl.workbench.search_space.typical_point`) and the ratio guess
    (:mod:`rigctl.workbench.guess`), the mass the drops' shape states where they resolve the slip
    (:mod:`rigctl.workbench.drop_shape`); each given start and the best with every effect off (a
    fit with an effect added is a point of its search); from the best, Sobol points
@@ -91,7 +92,12 @@ from rigctl.workbench.search_pool import (
     FinishTask,
     Outcome,
 )
-from rigctl.workbench.search_space import SearchSpace, build_space, effects_at_data_scale
+from rigctl.workbench.search_space import (
+    SearchSpace,
+    build_space,
+    effects_at_data_scale,
+    typical_point,
+)
 
 MIN_GENERATIONS = 10
 """Default budget, a cap the search rarely reaches (it ends where it stops gaining): at least this
@@ -174,7 +180,9 @@ def search_model(
     n_workers = default_workers() if workers is None else workers
     with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
         search = SearchState(space, pool, budget, seed, with_uncertainty)
-        search.starts([choice, *([scaled] if scaled is not None else []), *starts])
+        typical = typical_point(dataset, choice, added)
+        search.starts([choice, *([scaled] if scaled is not None else []),
+                       *([typical] if typical is not None else []), *starts])
         search.metric()
         search.cma()
         search.polish()
@@ -380,7 +388,7 @@ class SearchState:
         plausible ranges of the coordinates whose start is a guess (as many as a population,
         rounded up to a power of two to keep the Sobol sequence balanced)."""
         used = self.budget.used
-        given = [self.space.vector(c) for c in choices]
+        given = list({x.tobytes(): x for x in (self.space.vector(c) for c in choices)}.values())
         self.rank_starts(given)
         guess = self.ratio_guess(choices[0])
         if guess is not None:

@@ -241,13 +241,14 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
                        off, follows)
 
 
-def effects_at_data_scale(dataset: Dataset, choice: ModelChoice,
-                          effects: Collection[str]) -> ModelChoice:
+def effects_at_data_scale(dataset: Dataset, choice: ModelChoice, effects: Collection[str],
+                          identified: bool = False) -> ModelChoice:
     """``choice`` with the fixed dimensional parameters of ``effects`` (``identify=False`` with a
     ``scales_with`` quantity: a reference load, a reference velocity, a contact age) carried to the
     data's scale as :func:`~rigctl.workbench.data_scale.scale_effect_values` carries them (only
     where the data lie more than a factor NEAR_PRESET from the preset), except what the rig
-    description fixes.
+    description fixes. With ``identified``, the identified ones too: from the library defaults,
+    the effects at their typical size on these data (:func:`typical_point`).
 
     No coordinate of the search moves these, so a library default at the preset's scale stays
     wrong by the scale ratio: a power law of the load referred to the preset's 300 N on a 10 N rig
@@ -263,7 +264,7 @@ def effects_at_data_scale(dataset: Dataset, choice: ModelChoice,
     prefixes = tuple(f"{e}." for e in effects)
     table = [(p.name, p.value, p.lower, p.upper, p.scales_with)
              for p in choice.parameter_table()
-             if p.name.startswith(prefixes) and p.scales_with and not p.identify
+             if p.name.startswith(prefixes) and p.scales_with and (identified or not p.identify)
              and p.name not in dataset.rig.fixed]
     if not table:
         return choice
@@ -271,6 +272,26 @@ def effects_at_data_scale(dataset: Dataset, choice: ModelChoice,
     rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
     changed = scale_effect_values(table, scale_ratios(scale, base, rate))
     return choice.with_values(changed) if changed else choice
+
+
+def typical_point(dataset: Dataset, choice: ModelChoice,
+                  effects: Collection[str]) -> ModelChoice | None:
+    """``choice`` with ``effects`` at their library defaults carried to the data's scale (every
+    dimensional parameter, :func:`effects_at_data_scale`), the rest of the model as it is; None
+    where ``effects`` is empty.
+
+    The library default is each effect's typical size (docs/effects.md), the centre of the prior
+    its plausible range is drawn around: the one point of that range most likely to show the
+    effect, so screens and searches evaluate it as well as the spread points. It matters most
+    where an effect's gain lies in a narrow region of several coordinates at once (a load exponent
+    on both friction levels: the levels fit only where the two are near each other), which a few
+    scattered points miss."""
+    if not effects:
+        return None
+    values = {k: v for k, v in choice.values.items()
+              if effect_of(k) not in effects or k in dataset.rig.fixed}
+    plain = ModelChoice(choice.base, choice.effects, values, choice.effect_files)
+    return effects_at_data_scale(dataset, plain, effects, identified=True)
 
 
 def effect_ranges(dataset: Dataset, choice: ModelChoice,
