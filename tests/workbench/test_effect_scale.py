@@ -28,7 +28,7 @@ EFFECTS = ("load_dependent_friction", "rate_state")
 
 def _records(**metadata: float) -> Dataset:
     run = another_rig_record(12.0)
-    run.metadata.update({f"rig.{k}": v for k, v in metadata.items()})
+    run.metadata.update({f"rig.{k}": str(v) for k, v in metadata.items()})
     return prepare_dataset([run])
 
 
