@@ -599,8 +599,12 @@ class SearchState:
                 if last and float(np.linalg.norm(z - current)) < RESOLVED_STEP:
                     raise _ConvergedError("a trial step was below the residual's resolution")
                 o = self.evaluate([point(z)])[0]
-                vec = o.vector if o.vector is not None else \
-                    np.full(m, math.sqrt(self.failed_cost / m))
+                vec = o.vector
+                with np.errstate(over="ignore"):
+                    if vec is None or not math.isfinite(float(vec @ vec)):
+                        # a model that cannot be run, or one diverging so far that its squared
+                        # residual overflows: the failure's residual, a step the polish rejects
+                        vec = np.full(m, math.sqrt(self.failed_cost / m))
                 if len(vectors) > 64:
                     vectors.clear()
                 vectors[key] = vec
@@ -621,12 +625,18 @@ class SearchState:
             last.append(cost)
             current[:] = z
             self.budget.report(f"local polish: Jacobian {len(last)} at |r|^2 {cost:.4g}")
-            return self.jacobian(point(z), r)[:, cols] * h
+            J = self.jacobian(point(z), r)[:, cols] * h
+            with np.errstate(over="ignore"):
+                if not math.isfinite(float(np.sum(J * J))):
+                    raise _ConvergedError("the residual's slopes are beyond floating point "
+                                          "(a neighbour diverges)")
+            return J
 
         self.budget.report("local polish")
         try:
-            sol = least_squares(fun, np.zeros(len(cols)), jac=jac, bounds=(lo, hi),
-                                method="trf", x_scale=1.0, ftol=1e-4, xtol=None, gtol=1e-6)
+            with np.errstate(over="ignore"):  # squares of residuals near a diverging model
+                sol = least_squares(fun, np.zeros(len(cols)), jac=jac, bounds=(lo, hi),
+                                    method="trf", x_scale=1.0, ftol=1e-4, xtol=None, gtol=1e-6)
             message = str(sol.message)
         except _ConvergedError as stop:
             message = f"ended where {stop}"
