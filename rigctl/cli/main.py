@@ -133,7 +133,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except (DeviceError, SimulationError) as exc:
         say(f"rigctl: error: {exc}")
         return 1
-    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM while workers run (parallel.Terminated);
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM while workers run (interrupts.Terminated);
         # a signal before a run started (run_signals.StoppedBeforeRun)
         say(f"rigctl: {str(exc) or 'interrupted'}")
         return int(getattr(exc, "exit_code", 130))

@@ -20,8 +20,8 @@ from rigctl.workbench.auto import auto_select
 from rigctl.workbench.diagnose import Diagnosis, DiagnosisStep, Round, explain, rig_fn
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
+from rigctl.workbench.interrupts import signals_raise
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
-from rigctl.workbench.parallel import sigterm_raises
 from rigctl.workbench.ranking import (
     CandidateScore,
     Verdict,
@@ -51,7 +51,7 @@ def diagnose_auto(
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
         f"{len(pool)} candidate effects ...")
-    with sigterm_raises():  # SIGTERM ends the run as Ctrl-C does: every pool terminated
+    with signals_raise():  # Ctrl-C and SIGTERM end the run: every pool terminated
         sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
                           cancel=cancel, say=say)
     if on_fit is not None:

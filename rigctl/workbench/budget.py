@@ -23,6 +23,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from rigctl.workbench.interrupts import raise_if_signalled
+
 Progress = Callable[[float, float, str], None]
 """A progress callback: (fraction of the budget done, estimated seconds left, message)."""
 
@@ -134,7 +136,9 @@ class Budget:
         return self.cancel_event.is_set()
 
     def check(self) -> None:
-        """Raise :class:`SearchCancelledError` if the search was cancelled."""
+        """Raise :class:`SearchCancelledError` if the search was cancelled, and a Ctrl-C or
+        SIGTERM noted but not yet raised (:mod:`rigctl.workbench.interrupts`)."""
+        raise_if_signalled()
         if self.cancel_event.is_set():
             raise SearchCancelledError("search cancelled")
 

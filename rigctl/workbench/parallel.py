@@ -32,8 +32,10 @@ No worker outlives :func:`run_tasks` (local processes):
 * workers ignore SIGINT: Ctrl-C at a terminal goes to the whole process group, and it is the parent
   that stops (``KeyboardInterrupt``) and kills every worker it started on its way out;
 * SIGTERM to the parent, while tasks run in its main thread with the default SIGTERM action,
-  raises :class:`Terminated` (a ``KeyboardInterrupt``) instead of ending the process on the spot,
-  so the workers are killed the same way; the CLI prints ``rigctl: terminated`` and exits 143;
+  raises :class:`~rigctl.workbench.interrupts.Terminated` (a ``KeyboardInterrupt``) instead of
+  ending the process on the spot, so the workers are killed the same way; the CLI prints
+  ``rigctl: terminated`` and exits 143. A Ctrl-C or SIGTERM whose exception Python dropped (raised
+  inside a destructor) is raised again at the loop's next turn (:mod:`rigctl.workbench.interrupts`);
 * on Linux each worker asks the kernel to SIGKILL it when its parent dies
   (``prctl(PR_SET_PDEATHSIG)``), so even a parent killed with SIGKILL leaves no worker behind.
 """
@@ -48,10 +50,9 @@ import multiprocessing
 import os
 import signal
 import sys
-import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
@@ -59,6 +60,7 @@ from typing import Any, TypeVar
 from threadpoolctl import threadpool_limits
 
 from rigctl.errors import InputError
+from rigctl.workbench.interrupts import raise_if_signalled, signals_raise
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -75,15 +77,6 @@ PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _clock: Callable[[], float] = time.monotonic
 """The clock of the local workers' time limits (seconds; a test replaces it to run the limits in
 virtual time)."""
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM arrived while tasks ran: the workers were killed; exit code 143 (128 + 15)."""
-
-    exit_code = 128 + signal.SIGTERM
-
-    def __init__(self) -> None:
-        super().__init__("terminated (SIGTERM)")
 
 
 class SchedulerError(InputError):
@@ -166,25 +159,6 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-@contextlib.contextmanager
-def sigterm_raises() -> Iterator[None]:
-    """Within the block, SIGTERM raises :class:`Terminated` in the main thread (only where SIGTERM
-    still has its default action: a handler someone installed is left alone)."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
-        yield
-        return
-
-    def raise_terminated(signum: int, frame: Any) -> None:
-        raise Terminated()
-
-    signal.signal(signal.SIGTERM, raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def _reap(proc: Any) -> None:
     """Wait briefly for a worker to exit; kill it if it does not."""
     proc.join(timeout=EXIT_GRACE_S)
@@ -212,7 +186,7 @@ def _run_processes(
         if on_done:
             on_done(i, value)
 
-    with sigterm_raises(), contextlib.ExitStack() as cleanup:
+    with signals_raise(), contextlib.ExitStack() as cleanup:
         cleanup.callback(_kill_all, started, running)
         while todo or running:
             while todo and len(running) < max(1, workers):
@@ -225,6 +199,7 @@ def _run_processes(
                 send.close()
                 running[i] = (proc, recv, _clock())
             ready = wait([c for _, c, _ in running.values()], timeout=0.2)
+            raise_if_signalled()  # a Ctrl-C whose exception a destructor dropped
             now = _clock()
             for i in list(running):
                 proc, conn, t0 = running[i]
@@ -315,7 +290,7 @@ def _run_dask(
     own = not isinstance(scheduler, Client)
     client = connect(scheduler, min(timeout_s, CONNECT_TIMEOUT_S)) if own else scheduler
     where = f"the Dask scheduler at {getattr(client.scheduler, 'address', scheduler)}"
-    with sigterm_raises(), contextlib.ExitStack() as cleanup:
+    with signals_raise(), contextlib.ExitStack() as cleanup:
         if own:
             cleanup.callback(client.close, timeout=REMOTE_CALL_TIMEOUT_S)
         futures: list[Future] = client.map(fn, list(tasks), pure=False)

@@ -50,6 +50,7 @@ from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.identify import FitResult
+from rigctl.workbench.interrupts import signals_raise
 from rigctl.workbench.model_choice import ModelChoice, effect_of, with_effects
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.round_eta import RoundClock
@@ -168,8 +169,8 @@ class _SetScreen:
     def run(self, metric: BaseMetric | None, say: Say) -> tuple[Screened, BaseMetric | None]:
         """The set's screen, and the base's metric (computed here where not given)."""
         used = self.budget.used
-        with EvaluationPool(self.dataset, self.choice, self.space.free, self.budget,
-                            self.workers) as pool:
+        with signals_raise(), EvaluationPool(self.dataset, self.choice, self.space.free,
+                                             self.budget, self.workers) as pool:
             search = SearchState(self.space, pool, self.budget, self.seed, False)
             spread = self._spread_points()
             typical = self._typical_point()

@@ -82,6 +82,7 @@ from rigctl.workbench.identify import (
     next_fd_step,
     physically_valid,
 )
+from rigctl.workbench.interrupts import signals_raise
 from rigctl.workbench.model_choice import ModelChoice, effect_of
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.search_pool import (
@@ -178,7 +179,7 @@ def search_model(
     if cancel is not None:
         budget.cancel_event = cancel
     n_workers = default_workers() if workers is None else workers
-    with EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
+    with signals_raise(), EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
         search = SearchState(space, pool, budget, seed, with_uncertainty)
         typical = typical_point(dataset, choice, added)
         search.starts([choice, *([scaled] if scaled is not None else []),

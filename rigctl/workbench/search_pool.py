@@ -23,11 +23,13 @@ compiling its code (numba: a plug-in's terms, the engine's paths in a fresh cach
 to a point.
 
 The parent waits for a batch in steps of :data:`POLL_S`, checking the budget's cancel flag
-(:meth:`~rigctl.workbench.budget.Budget.check`) between them; a cancel or Ctrl-C terminates every
-worker at once. The polish's Jacobians are batches of points like a population; the answer's final
-evaluation and its uncertainties run as one task in a worker, so they are cancelled the same way.
-With ``workers=0`` everything runs in this process (debugging, profiling); a cancel is then seen
-between evaluations only.
+(:meth:`~rigctl.workbench.budget.Budget.check`) and the signals noted
+(:func:`~rigctl.workbench.interrupts.raise_if_signalled`: a Ctrl-C whose exception Python dropped
+in a destructor) between them; a cancel or Ctrl-C terminates every worker at once. The polish's
+Jacobians are batches of points like a population; the answer's final evaluation and its
+uncertainties run as one task in a worker, so they are cancelled the same way. With ``workers=0``
+everything runs in this process (debugging, profiling); a cancel is then seen between evaluations
+only.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ from rigctl.workbench.identify import (
     misses_most_slips,
     with_uncertainties,
 )
+from rigctl.workbench.interrupts import raise_if_signalled
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.parallel import die_with_parent
 
@@ -273,6 +276,7 @@ class EvaluationPool:
     def _wait(self, pending: Any) -> Any:
         while not pending.ready():
             pending.wait(POLL_S)
+            raise_if_signalled()  # a Ctrl-C whose exception a destructor dropped
             if self.budget.cancelled:
                 self.close(terminate=True)
                 self.budget.check()
