@@ -40,7 +40,7 @@ from rigctl.records.rig_description import RigDescription
 from rigctl.records.ringing import ringing_mass
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.metrics import RunComparison
+from rigctl.workbench.metrics import RunComparison, residual_length
 from rigctl.workbench.model_choice import ModelChoice
 
 FD_STEP = 0.05  # first finite-difference step in internal units (5 % of a log parameter)
@@ -244,11 +244,10 @@ class Objective:
         return np.asarray(u, dtype=np.float64).tobytes() in self._trapped
 
     def _length(self) -> int:
-        for v in self._cache.values():
-            return int(v.shape[0])
-        # unbounded: the residual's length is the data's, so a start whose model slips past the
-        # budget still gives it
-        return int(evaluate(self.dataset, self.choice).score.vector.shape[0])
+        """The residual vector's length: the data's (:func:`~rigctl.workbench.metrics.
+        residual_length`), known without running a model (a model run here, unbounded, to learn
+        it held a search for as long as a chattering model took to integrate)."""
+        return residual_length(self.dataset)
 
 
 def fn_range(dataset: Dataset) -> tuple[float, float]:

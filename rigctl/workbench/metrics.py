@@ -223,6 +223,21 @@ def _score(dataset: Dataset, model_events: list[EventTable],
     return Score(_equalise(vec, dataset, counts), error, feature_error, dataset.n_events, comps)
 
 
+def residual_length(dataset: Dataset) -> int:
+    """The length of :func:`score`'s residual vector on ``dataset``, whatever the model: it has an
+    entry per block of each event feature of each run, per drive segment of each run (spurious
+    slips), per initial-stage band of each run and per image feature a run measured, all of them
+    the data's (:func:`_score`). A fit needs it for a point whose model cannot be run, without
+    running a model."""
+    n = 0
+    for run in dataset.runs:
+        n += len(EVENT_FEATURES) * len(run.blocks) + run.drive.n_segments()
+        n += int(run.events.init_k_N_per_m.shape[0])
+        if run.image is not None:
+            n += sum(1 for v in run.image.measured().values() if math.isfinite(v))
+    return n
+
+
 def _equalise(vec: FloatArray, dataset: Dataset, counts: dict[str, int]) -> FloatArray:
     """Scale each feature's entries by 1/sqrt(its block count) so that |vec|^2 = n_feat * E^2."""
     out = vec.copy()
