@@ -172,10 +172,9 @@ class _SetScreen:
         with signals_raise(), EvaluationPool(self.dataset, self.choice, self.space.free,
                                              self.budget, self.workers) as pool:
             search = SearchState(self.space, pool, self.budget, self.seed, False)
-            spread = self._spread_points()
-            typical = self._typical_point()
-            spread = [*typical, *spread]
-            outcomes = search.evaluate([self.x0, *spread])
+            labelled = [*(("typical size", x) for x in self._typical_point()),
+                        *(("spread point", x) for x in self._spread_points())]
+            outcomes = search.evaluate([self.x0, *(x for _, x in labelled)])
             o0 = outcomes[0]
             if o0.status != OK or o0.vector is None:
                 say(f"  screened {' + '.join(self.effects)}: the model itself cannot be run")
@@ -188,9 +187,8 @@ class _SetScreen:
                                        [self.space.free[i].name for i in self.base])
             Q = metric.Q
             found = [(profiled_cost(r0, Q), "off", self.x0, r0)]
-            found += [(profiled_cost(o.vector, Q), "typical size" if k < len(typical)
-                       else "spread point", x, o.vector)
-                      for k, (x, o) in enumerate(zip(spread, outcomes[1:], strict=True))
+            found += [(profiled_cost(o.vector, Q), label, x, o.vector)
+                      for (label, x), o in zip(labelled, outcomes[1:], strict=True)
                       if o.status == OK and o.vector is not None]
             score = 0.0
             if self.on:

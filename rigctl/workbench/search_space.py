@@ -262,13 +262,14 @@ def effects_at_data_scale(dataset: Dataset, choice: ModelChoice, effects: Collec
     if not scale.usable:
         return choice
     prefixes = tuple(f"{e}." for e in effects)
+    params = choice.parameter_table()
     table = [(p.name, p.value, p.lower, p.upper, p.scales_with)
-             for p in choice.parameter_table()
+             for p in params
              if p.name.startswith(prefixes) and p.scales_with and (identified or not p.identify)
              and p.name not in dataset.rig.fixed]
     if not table:
         return choice
-    base = {p.name: p.value for p in choice.parameter_table() if "." not in p.name}
+    base = {p.name: p.value for p in params if "." not in p.name}
     rate = float(np.median([r.sample_rate_hz for r in dataset.runs]))
     changed = scale_effect_values(table, scale_ratios(scale, base, rate))
     return choice.with_values(changed) if changed else choice
