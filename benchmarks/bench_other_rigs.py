@@ -1,6 +1,7 @@
 """Held-out rigs: ``diagnose --auto`` on campaigns of rigs that are not this one.
 
-``python -m benchmarks.bench_other_rigs [--cases N] [--first I] [--seed S] [--workers N] [--jsonl FILE]``
+``python -m benchmarks.bench_other_rigs [--cases N] [--first I] [--seed S] [--workers N] [--jsonl FILE]
+[--case-limit-s S]``
 
 Each case is a rig drawn at random, far from this rig's preset: normal force 0.5 N to 5 kN, drive
 stiffness 1e2 to 1e7 N/m, interface 0.5 to 20 times stiffer, mass 1 g to 1 kg, friction 0.1 to 0.8
@@ -19,7 +20,9 @@ SHAPE_FACTOR of their typical values.
 A case is a **hit** when ``--auto`` adds exactly the hidden effects (either order) and ends at most
 at half the baseline error (a control: adds nothing); else **indistinguishable** when it stopped
 because the data cannot decide between sets (``truth_among_undecided``: one of them completes the
-hidden set), else **wrong**. Each case also gives ``truth_error``, what the
+hidden set), else **wrong**; with ``--case-limit-s``, a case whose diagnosis is still running at
+that many wall seconds is cancelled (as the GUI's Cancel does) and answers **time limit**: a miss
+with no name, its time the limit. Each case also gives ``truth_error``, what the
 generating model itself scores on the case's data (the floor a fit is judged against). Figures are
 printed per case and summed; nothing asserts a time.
 """
@@ -30,6 +33,7 @@ import argparse
 import json
 import math
 import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -42,9 +46,10 @@ from rigctl.model import Drive, ParameterError, Simulator, build_model
 from rigctl.model.effects import LIBRARY
 from rigctl.model.noise import NoiseModel
 from rigctl.records.dataset import prepare_dataset
+from rigctl.workbench.auto_diagnosis import diagnose_auto
+from rigctl.workbench.budget import SearchCancelledError
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
 from rigctl.workbench.data_scale import DataScale, scale_ratios
-from rigctl.workbench.diagnose import diagnose
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.ranking import VerdictKind
@@ -164,17 +169,38 @@ def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN,
     return runs, hidden, truth, drawn
 
 
-def run_case(i: int, seed: int, workers: int, verbose: bool = False) -> dict[str, Any]:
+def run_case(i: int, seed: int, workers: int, verbose: bool = False,
+             limit_s: float | None = None) -> dict[str, Any]:
     runs, hidden, truth, drawn = draw_case(i, seed)
     t0 = time.perf_counter()
     ds = prepare_dataset(runs)
     say = (lambda msg: print(f"[case {i}] {msg}", file=sys.stderr, flush=True)) if verbose else None
-    diag = diagnose(ds, ModelChoice("paper"), auto=True, workers=workers, progress=say)
+    cancel = threading.Event()
+    timer = threading.Timer(limit_s, cancel.set) if limit_s else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    try:
+        diag = diagnose_auto(ds, ModelChoice("paper"), workers=workers, progress=say,
+                             cancel=cancel)
+    except SearchCancelledError:
+        diag = None
+    finally:
+        if timer is not None:
+            timer.cancel()
     wall = time.perf_counter() - t0
     try:  # what the generating model itself scores: the floor a fit can be judged against
         truth_err = float(evaluate(ds, truth).score.error)
     except (SimulationError, ParameterError):
         truth_err = math.nan
+    if diag is None:
+        return {"case": i, "hidden": list(hidden), "final": [], "added": [],
+                "answer": "time limit", "undecided_between": [], "truth_among_undecided": False,
+                "rate_hz": drawn["rate_hz"], "noise_factor": drawn["noise_factor"],
+                "removed": [], "baseline_error": math.nan, "final_error": math.nan,
+                "hit": False, "wall_s": wall, "n_events": ds.n_events, "truth_error": truth_err,
+                "unexplained": f"cancelled at the case time limit ({limit_s:.0f} s)",
+                "rig": drawn["rig"], "protocols": drawn["protocols"]}
     added = [st.added for st in diag.steps if st.added]
     removed = [st.note for st in diag.steps if st.note.startswith("removed")]
     final = [e for e in diag.final_model.choice.effects]
@@ -256,14 +282,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jsonl", default="")
     ap.add_argument("--verbose", action="store_true",
                     help="the diagnosis's progress (each candidate's fit, each step) on stderr")
+    ap.add_argument("--case-limit-s", type=float, default=0.0,
+                    help="cancel a case's diagnosis after this many wall seconds and count it "
+                         "as a miss (default: no limit)")
     args = ap.parse_args(argv)
-    results = run_cases(lambda i: run_case(i, args.seed, args.workers, args.verbose),
+    if args.case_limit_s < 0:
+        ap.error("--case-limit-s must not be negative")
+    results = run_cases(lambda i: run_case(i, args.seed, args.workers, args.verbose,
+                                           args.case_limit_s or None),
                         args.first, args.cases, args.jsonl)
     hits = sum(r["hit"] for r in results)
     undecided = sum(r["answer"] == "indistinguishable" for r in results)
-    print(f"hits {hits}/{len(results)}, indistinguishable {undecided}, wrong "
-          f"{len(results) - hits - undecided}; wall {sum(r['wall_s'] for r in results):.0f} s",
-          file=sys.stderr)
+    stopped = sum(r["answer"] == "time limit" for r in results)
+    print(f"hits {hits}/{len(results)}, indistinguishable {undecided}, stopped at the time limit "
+          f"{stopped}, wrong {len(results) - hits - undecided - stopped}; "
+          f"wall {sum(r['wall_s'] for r in results):.0f} s", file=sys.stderr)
     return 0
 
 

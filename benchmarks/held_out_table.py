@@ -42,7 +42,8 @@ def interval(k: int, n: int) -> tuple[float, float]:
 
 
 def answer(case: dict[str, Any]) -> str:
-    """``hit``, ``indistinguishable`` or ``wrong`` (older lines have only ``hit``)."""
+    """``hit``, ``indistinguishable``, ``time limit`` (cancelled at the case time limit: a miss
+    with no name) or ``wrong`` (older lines have only ``hit``)."""
     if "answer" in case:
         return str(case["answer"])
     return "hit" if case["hit"] else "wrong"
@@ -61,7 +62,8 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
     n = len(cases)
     kinds = [answer(c) for c in cases]
     hits, undecided = kinds.count("hit"), kinds.count("indistinguishable")
-    wrong = n - hits - undecided
+    stopped = kinds.count("time limit")
+    wrong = n - hits - undecided - stopped
     walls = [float(c["wall_s"]) for c in cases]
     lines = [f"# {title}", ""]
     if n:
@@ -72,7 +74,9 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
             f"- Indistinguishable (the data could not decide; counted apart): {undecided}"
             + (f", of which the hidden set was among the contenders in "
                f"{sum(bool(c.get('truth_among_undecided')) for c in cases)}" if undecided
-               else "") + f". Wrong names: {wrong}.",
+               else "") + f". Wrong names: {wrong}."
+            + (f" Stopped at the case time limit (no answer, a miss): {stopped}." if stopped
+               else ""),
         ]
         by_hidden: dict[int, list[str]] = {}
         for c, k in zip(cases, kinds, strict=True):
@@ -81,7 +85,9 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
                  f"{ks.count('hit')}/{len(ks)}" for h, ks in sorted(by_hidden.items())]
         lines += [f"- By what was hidden: {'; '.join(parts)}.",
                   f"- Time per case: median {statistics.median(walls):.0f} s, worst "
-                  f"{max(walls):.0f} s (wall, `--workers 2`).", ""]
+                  f"{'at least ' if stopped else ''}{max(walls):.0f} s (wall, `--workers 2`"
+                  f"{'; a case stopped at the limit counts its limit' if stopped else ''}).",
+                  ""]
     lines += ["| case | hidden | final model's effects | answer | baseline E | final E | "
               "generating model's E | wall s |",
               "| ---: | --- | --- | --- | ---: | ---: | ---: | ---: |"]

@@ -6,7 +6,7 @@ of the Qt process: a forked copy of a GUI with threads can deadlock). The target
 returns a picklable result. A QTimer in the GUI thread polls the job's queue every
 ``POLL_INTERVAL_MS`` and emits Qt signals: ``progress``, then ``finished(result)`` or
 ``failed(message)``. :meth:`ProcessJob.cancel` stops the process (SIGTERM, so a diagnosis kills its
-own candidate-fit workers on the way out, see :mod:`rigctl.workbench.parallel`; SIGKILL after
+own candidate-fit workers on the way out, see :mod:`rigctl.workbench.interrupts`; SIGKILL after
 ``CANCEL_GRACE_S``) and emits ``cancelled``.
 
 The worker asks the kernel to kill it when the window's process dies (Linux ``PR_SET_PDEATHSIG``),

@@ -47,3 +47,17 @@ def test_a_case_run_again_keeps_its_last_line(tmp_path):
     b.write_text(json.dumps(_case(0, [], [], "hit", 12.0)) + "\n")
     (case,) = load([str(a), str(b)])
     assert case["answer"] == "hit"
+
+
+def test_a_case_stopped_at_the_time_limit_is_a_miss_counted_apart(tmp_path):
+    lines = [_case(0, [], [], "hit", 30.0),
+             _case(1, ["a"], [], "time limit", 1800.0, baseline_error=float("nan"),
+                   final_error=float("nan")),
+             _case(2, ["a"], ["b"], "wrong", 100.0)]
+    path = tmp_path / "r.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    page = table(load([str(path)]), "Seed 9")
+    assert "**Hits: 1 of 3**" in page
+    assert "Wrong names: 1. Stopped at the case time limit (no answer, a miss): 1." in page
+    assert "worst at least 1800 s" in page
+    assert "| 1 | a | - | time limit | - | - | 2.5 | 1800 |" in page
