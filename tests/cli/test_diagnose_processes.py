@@ -278,7 +278,8 @@ def _watch_until_exit(cmd: Command, seen: dict[int, psutil.Process], timeout_s: 
     """The command's exit code and output, and every descendant it had on the way into ``seen``."""
     t_end = time.monotonic() + timeout_s
     while cmd.poll() is None:
-        assert time.monotonic() < t_end, f"the command did not end within {timeout_s} s"
+        assert time.monotonic() < t_end, (f"the command did not end within {timeout_s} s; its "
+                                          f"stderr ends: {cmd.output()[1][-2000:]}")
         seen.update(_descendants(cmd.pid))
         time.sleep(0.05)
     out, err = cmd.output()
