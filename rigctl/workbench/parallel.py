@@ -299,6 +299,7 @@ def _run_dask(
         done_keys: set[Any] = set()
         try:
             for fut in as_completed(futures, timeout=timeout_s):
+                raise_if_signalled()  # a Ctrl-C whose exception a destructor dropped
                 i = index[fut.key]
                 done_keys.add(fut.key)
                 try:
