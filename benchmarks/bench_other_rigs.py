@@ -20,10 +20,12 @@ SHAPE_FACTOR of their typical values.
 A case is a **hit** when ``--auto`` adds exactly the hidden effects (either order) and ends at most
 at half the baseline error (a control: adds nothing); else **indistinguishable** when it stopped
 because the data cannot decide between sets (``truth_among_undecided``: one of them completes the
-hidden set), else **wrong**; with ``--case-limit-s``, a case whose diagnosis is still running at
+hidden set), else **wrong**. With ``--case-limit-s``, a case whose diagnosis is still running at
 that many wall seconds is cancelled (as the GUI's Cancel does) and answers **time limit**: a miss
-with no name, its time the limit. Each case also gives ``truth_error``, what the
-generating model itself scores on the case's data (the floor a fit is judged against). Figures are
+with no name, its time the limit. Each case also gives ``truth_error``, what the generating model
+itself scores on the case's data (the floor a fit is judged against), and the peak resident
+memory so far of this process and of its largest finished worker (``peak_rss_mb``, from
+``getrusage``: maxima over the run, so a case's figure includes the cases before it). Figures are
 printed per case and summed; nothing asserts a time.
 """
 
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import resource
 import sys
 import threading
 import time
@@ -223,13 +226,22 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False,
             "rig": drawn["rig"], "protocols": drawn["protocols"]}
 
 
+def peak_rss_mb() -> dict[str, float]:
+    """Peak resident memory so far (MB) of this process and of its largest terminated child (the
+    search's worker processes end with each pool)."""
+    to_mb = 1024.0 if sys.platform.startswith("linux") else 1024.0 * 1024.0  # KB on Linux
+    return {"parent": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / to_mb, 1),
+            "largest_worker": round(
+                resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / to_mb, 1)}
+
+
 def run_cases(run: Callable[[int], dict[str, Any]], first: int, cases: int,
               jsonl: str) -> list[dict[str, Any]]:
     """``run`` of each case index from ``first``: each result printed as a JSON line as it ends
     (and appended to ``jsonl`` where given), all of them returned."""
     results = []
     for i in range(first, first + cases):
-        res = run(i)
+        res = {**run(i), "peak_rss_mb": peak_rss_mb()}
         results.append(res)
         line = json.dumps(res)
         print(line, flush=True)

@@ -57,6 +57,17 @@ def _err(x: float | None) -> str:
     return f"{x:.3g}" if x is not None and math.isfinite(x) else "-"
 
 
+def _memory_line(cases: Sequence[dict[str, Any]]) -> list[str]:
+    """The run's peak resident memory (lines written since it was recorded), or nothing."""
+    peaks = [c["peak_rss_mb"] for c in cases if "peak_rss_mb" in c]
+    if not peaks:
+        return []
+    parent = max(float(p["parent"]) for p in peaks)
+    worker = max(float(p["largest_worker"]) for p in peaks)
+    return [f"- Peak resident memory over the run: {parent:.0f} MB (the diagnosing process), "
+            f"{worker:.0f} MB (its largest worker process)."]
+
+
 def table(cases: Sequence[dict[str, Any]], title: str) -> str:
     """The markdown page: the summary, then a row per case."""
     n = len(cases)
@@ -87,7 +98,7 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
                   f"- Time per case: median {statistics.median(walls):.0f} s, worst "
                   f"{'at least ' if stopped else ''}{max(walls):.0f} s (wall, `--workers 2`"
                   f"{'; a case stopped at the limit counts its limit' if stopped else ''}).",
-                  ""]
+                  *_memory_line(cases), ""]
     lines += ["| case | hidden | final model's effects | answer | baseline E | final E | "
               "generating model's E | wall s |",
               "| ---: | --- | --- | --- | ---: | ---: | ---: | ---: |"]

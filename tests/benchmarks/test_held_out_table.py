@@ -61,3 +61,18 @@ def test_a_case_stopped_at_the_time_limit_is_a_miss_counted_apart(tmp_path):
     assert "Wrong names: 1. Stopped at the case time limit (no answer, a miss): 1." in page
     assert "worst at least 1800 s" in page
     assert "| 1 | a | - | time limit | - | - | 2.5 | 1800 |" in page
+
+
+def test_the_page_gives_the_run_s_peak_memory_where_recorded(tmp_path):
+    lines = [_case(0, [], [], "hit", 30.0, peak_rss_mb={"parent": 310.0, "largest_worker": 250.4}),
+             _case(1, ["a"], ["a"], "hit", 60.0,
+                   peak_rss_mb={"parent": 420.2, "largest_worker": 380.0}),
+             _case(2, ["b"], ["b"], "hit", 60.0)]  # a line from before memory was recorded
+    path = tmp_path / "r.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    page = table(load([str(path)]), "Seed 9")
+    assert ("- Peak resident memory over the run: 420 MB (the diagnosing process), 380 MB (its "
+            "largest worker process).") in page
+    older = tmp_path / "o.jsonl"
+    older.write_text(json.dumps(lines[2]) + "\n")
+    assert "Peak resident memory" not in table(load([str(older)]), "Seed 9")
