@@ -16,6 +16,19 @@ from rigctl.workbench.budget import Budget
 from rigctl.workbench.interrupts import Terminated, raise_if_signalled, signals_raise
 
 
+@pytest.fixture(autouse=True)
+def _default_handlers():
+    """Each test starts from SIGINT and SIGTERM at their defaults, as a command does (a test run
+    earlier in the same process may have left its own handlers: `rigctl run`'s, say), and leaves
+    them as it found them."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    yield
+    for s, handler in before.items():
+        signal.signal(s, handler)
+
+
 class _SignalsInItsDestructor:
     """An object whose destructor receives ``signum``: the handler runs inside ``__del__``, where
     Python prints the exception ("Exception ignored in ...") and drops it."""
