@@ -11,8 +11,9 @@ reaches the whole process group, and the parent decides), and the command would 
 
 So every place a search waits or checks its budget calls :func:`raise_if_signalled`, which raises
 the noted signal again; and if the block ends normally with a signal noted, it raises there. The
-dropped exception's "Exception ignored ..." traceback is not printed (``sys.unraisablehook``): it
-is raised again where it can act, and the command ends with its one line. (The destructor seen in
+dropped exception's traceback is not printed (``sys.unraisablehook`` for a destructor's
+"Exception ignored ...", ``sys.excepthook`` for compiled code that prints what it cannot pass on):
+it is raised again where it can act, and the command ends with its one line. (The destructor seen in
 practice: scipy's Sobol sampler loads its direction numbers with ``numpy.load`` and leaves the
 ``NpzFile``, a reference cycle, to the cyclic garbage collector, which runs it at any bytecode.) Only
 handlers at their defaults are replaced (``signal.default_int_handler`` for SIGINT, ``SIG_DFL`` for
@@ -67,6 +68,20 @@ def _quiet_for_noted(previous: Any) -> Any:
     return hook
 
 
+def _quiet_excepthook(previous: Any) -> Any:
+    """An exception hook that drops a noted signal's exception and passes anything else on.
+    Compiled code that cannot pass an exception on (a Cython function such as scipy's Sobol
+    initialisation) prints it through ``sys.excepthook`` (``PyErr_PrintEx``) and goes on; a
+    signal's exception that leaves the block is raised past it, never printed here."""
+
+    def hook(exc_type: type[BaseException], exc: BaseException, tb: Any) -> None:
+        if _noted and issubclass(exc_type, KeyboardInterrupt):
+            return
+        previous(exc_type, exc, tb)
+
+    return hook
+
+
 def raise_if_signalled() -> None:
     """Raise the first signal noted in this block (a no-op outside one, or when none came)."""
     if _noted:
@@ -93,8 +108,9 @@ def signals_raise() -> Iterator[None]:
                 if signal.getsignal(s) is default}
     for s in replaced:
         signal.signal(s, _note_and_raise)
-    previous_hook = sys.unraisablehook
+    previous_hook, previous_excepthook = sys.unraisablehook, sys.excepthook
     sys.unraisablehook = _quiet_for_noted(previous_hook)
+    sys.excepthook = _quiet_excepthook(previous_excepthook)
     _depth = 1
     try:
         yield
@@ -102,6 +118,6 @@ def signals_raise() -> Iterator[None]:
     finally:
         _depth = 0
         _noted.clear()
-        sys.unraisablehook = previous_hook
+        sys.unraisablehook, sys.excepthook = previous_hook, previous_excepthook
         for s, previous in replaced.items():
             signal.signal(s, previous)

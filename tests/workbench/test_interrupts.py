@@ -127,3 +127,25 @@ def test_the_dropped_exception_is_not_printed_and_other_ones_are(monkeypatch):
         del f
         gc.collect()
     assert [type(e) for e in heard] == [ValueError]
+
+
+def test_compiled_code_that_prints_the_dropped_exception_prints_nothing(monkeypatch):
+    """Compiled code that cannot pass an exception on prints it with ``PyErr_PrintEx``, which
+    goes through ``sys.excepthook`` (a Cython function: scipy's Sobol initialisation); a noted
+    signal's exception is not printed, anything else still is."""
+    heard: list[type[BaseException]] = []
+    monkeypatch.setattr(sys, "excepthook", lambda t, e, tb: heard.append(t))
+    with pytest.raises(KeyboardInterrupt), signals_raise():
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt as exc:  # what such code does with it: print, go on
+            sys.excepthook(type(exc), exc, exc.__traceback__)
+        try:
+            raise ValueError("its own error")
+        except ValueError as exc:
+            sys.excepthook(type(exc), exc, exc.__traceback__)
+        raise_if_signalled()
+    assert heard == [ValueError]
+    assert sys.excepthook is not None and signal.getsignal(signal.SIGINT) is \
+        signal.default_int_handler
