@@ -94,6 +94,9 @@ class Screened:
     moved by the linear re-fit that point's profile assumes (:meth:`BaseMetric.step`): a start for
     the set's full fit, so that the fit begins where the screen saw its gain (None where that
     point is the model itself, which every fit starts from)."""
+    score_df: int = 0
+    """The coordinates the score's step moves (the statistic's degrees of freedom; 0 where the
+    set has no score)."""
 
 
 def base_basis(jacobian: FloatArray) -> FloatArray:
@@ -209,7 +212,8 @@ class _SetScreen:
         n0 = float(r0 @ r0)
         error = self.model.error * math.sqrt(cost / n0) if n0 > 0.0 else self.model.error
         start = None if where == "off" else self._start(x_at, r_at, metric)
-        out = Screened(self.effects, error, score, self.budget.used - used, where, start)
+        out = Screened(self.effects, error, score, self.budget.used - used, where, start,
+                       len(self.on))
         return out, metric
 
     def _start(self, x: FloatArray, r: FloatArray, metric: BaseMetric) -> ModelChoice:

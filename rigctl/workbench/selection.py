@@ -15,10 +15,15 @@ One step:
    on.
 2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
    ``SCREEN_KEEP`` pairs go on.
-3. **Gate**: of the kept sets only those whose screened error is significant against the model
-   by the rule below go on (:func:`promising`): a set's screened error is that of a point the
-   screen evaluated, so a set the full fit would find significant almost always screens so too.
-   Where none does, the step ends there.
+3. **Gate** (:func:`gate`): of the kept sets those whose screened error is significant against
+   the model by the rule below go on (:func:`promising`): a set's screened error is that of a
+   point the screen evaluated, so it is about what the full fit reaches at worst. Free places
+   among the SCREEN_KEEP singles then go to singles whose *score statistic* is significant
+   (:func:`score_significant`: the score test, chi-square at SCORE_ALPHA over the step's singles),
+   strongest first: a significant slope at the effect's off values is evidence that the data
+   contain its direction even where no screened point shows a significant gain (the gain lies
+   beyond the linear re-fit of the base, which the full fit is not limited to). Where no set
+   passes, the step ends there.
 4. **Fit** those sets fully (``fit``), each also from the point where its screen found its
    error (so a fit does not end worse than what the screen saw), and score each against the
    model (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as
@@ -51,6 +56,8 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
+
+from scipy.stats import chi2
 
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.identify import FitResult
@@ -92,6 +99,14 @@ PAIR_POOL = 4
 """Pairs are formed from the best this many screened singles (six pairs): an effect of an
 interacting pair still lowers the error alone, if less than significantly, and so ranks near the
 top of the singles' screen."""
+SCORE_ALPHA = 0.01
+"""The score gate's false-alarm probability per step, over all its singles (Bonferroni: each
+single's score is tested at SCORE_ALPHA / their number). The residual is in units of the measured
+scatter with each feature weighted by the inverse of its block count, so on a model right up to
+noise the score statistic of k coordinates is at most chi-square with k degrees of freedom (its
+weights are at most 1, and the prior's damping only lowers it): a step of a right model sends a set
+to a full fit by its score once in a hundred. A false alarm costs a full fit's time, never a wrong
+effect: the fit is judged by the same rule as every other."""
 MAX_STEPS = 5
 """Forward steps at most (each adds one or two effects): bounds the run time on data that keep
 rewarding more parameters."""
@@ -195,6 +210,28 @@ def promising(model: FitResult, s: Screened, n_events: int) -> bool:
         added_parameters(model, s)).significant
 
 
+def score_significant(s: Screened, n_sets: int) -> bool:
+    """Whether the score statistic of ``s`` is significant: its chi-square tail probability with
+    the score's degrees of freedom is below SCORE_ALPHA / ``n_sets`` (the score test, Rao 1948;
+    Seber & Wild, *Nonlinear Regression*, 1989, sec. 5.9)."""
+    return s.score_df > 0 and math.isfinite(s.error) and \
+        float(chi2.sf(s.score, s.score_df)) < SCORE_ALPHA / max(n_sets, 1)
+
+
+def gate(model: FitResult, singles: Sequence[Screened], pairs: Sequence[Screened],
+         n_events: int) -> list[Screened]:
+    """The screened sets a step fits fully (module docstring, 3): of the first SCREEN_KEEP singles
+    and pairs those :func:`promising`, then, in the free places among SCREEN_KEEP singles, the
+    singles whose score is significant (:func:`score_significant`), the smallest tail probability
+    first."""
+    kept = [s for s in singles[:SCREEN_KEEP] if promising(model, s, n_events)]
+    by_score = sorted((s for s in singles
+                       if s not in kept and score_significant(s, len(singles))),
+                      key=lambda s: float(chi2.logsf(s.score, s.score_df)))
+    kept += by_score[:SCREEN_KEEP - len(kept)]
+    return kept + [s for s in pairs[:SCREEN_KEEP] if promising(model, s, n_events)]
+
+
 def added_parameters(model: FitResult, s: Screened) -> int:
     """Parameters the screened set adds to ``model``: its effects' identified parameters (at least
     one each), the count a screen is judged with."""
@@ -210,22 +247,25 @@ def forward_step(
     say: Say,
 ) -> tuple[Trial | None, list[Trial], list[Screened]]:
     """One forward step from ``model``: the set to add (None: nothing significant), the trials
-    (none where no screened set is :func:`promising`) and every screen."""
+    (none where the :func:`gate` passes no screened set) and every screen."""
     n = dataset.n_events
     singles = screen(dataset, model, [(c,) for c in pool])
     pair_sets = [tuple(sorted((a.effects[0], b.effects[0])))
                  for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
     pairs = screen(dataset, model, pair_sets)
     screens = sorted([*singles, *pairs], key=lambda s: s.error)
-    kept = [s for s in [*singles[:SCREEN_KEEP], *pairs[:SCREEN_KEEP]] if promising(model, s, n)]
+    kept = gate(model, singles, pairs, n)
     if not kept:
-        say(f"  no screened set is significant against {model.choice.label()} "
-            f"({model.error:.3g}; best {screens[0].error:.3g})" if screens else
+        say(f"  no screened set is significant against {model.choice.label()} by its error "
+            f"or its score ({model.error:.3g}; best {screens[0].error:.3g})" if screens else
             "  nothing to screen")
         return None, [], screens
     trials: list[Trial] = []
     clock = RoundClock([1.0] * len(kept))
     for i, s in enumerate(kept):
+        if not promising(model, s, n):
+            say(f"  {' + '.join(s.effects)}: its screened error is not significant, its score "
+                f"is ({s.score:.3g}, {s.score_df} coordinates): fitted fully")
         res = fit(dataset, with_effects(model.choice, s.effects),
                   starts=() if s.start is None else (s.start,))
         name = " + ".join(s.effects)

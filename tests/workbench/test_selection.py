@@ -253,3 +253,66 @@ def test_a_runner_up_well_behind_or_nested_is_no_contender():
     out = _select(t)
     assert out.steps[0].effects == ("a",)
     assert all(not r.undecided for r in out.rounds)
+
+
+class Scored(Table):
+    """A table whose screen is a score screen: each set's screened error (as ``Table``) and its
+    score statistic (``scores``, 0 where absent) with one degree of freedom per effect."""
+
+    def __init__(self, errors: Mapping[frozenset[str], float],
+                 screen_errors: Mapping[frozenset[str], float],
+                 scores: Mapping[frozenset[str], float]) -> None:
+        super().__init__(errors, screen_errors=screen_errors)
+        self.scores = dict(scores)
+
+    def score_screen(self, ds: Any, model: FitResult, sets: Sequence[tuple[str, ...]]
+                     ) -> list[sel.Screened]:
+        out = []
+        for effects in sets:
+            res = self.screen(ds, sel.with_effects(model.choice, effects))
+            out.append(sel.Screened(effects, res.error, self.scores.get(frozenset(effects), 0.0),
+                                    1, "spread point", None, len(effects)))
+        return sorted(out, key=lambda s: s.error)
+
+
+def _select_scored(table: Scored) -> sel.Selection:
+    base = table.fit(DATASET, ModelChoice("paper"))
+    table.fitted.clear()
+    return sel.select_effects(DATASET, base, list(POOL), fit=table.fit, screen=table.score_screen)
+
+
+def test_a_set_with_a_significant_score_is_fitted_although_its_screened_error_is_not():
+    # "d" fits to 3.0, but its screen saw only 9.8 (the gain beyond the linear re-fit); its score
+    # of 60 on one coordinate is far beyond chance (chi-square tail ~1e-14)
+    t = Scored({S(): 10.0, S("d"): 3.0}, screen_errors={S(c): 9.8 for c in POOL},
+               scores={S("d"): 60.0, S("a"): 1.0})
+    out = _select_scored(t)
+    assert S("d") in t.fitted[: 2 * sel.SCREEN_KEEP]
+    assert out.steps[0].effects == ("d",)
+
+
+def test_a_score_within_chance_sends_nothing_to_a_full_fit():
+    # scores of 3 on one coordinate (tail 0.08) over five singles: within chance at SCORE_ALPHA
+    t = Scored({S(): 10.0, S("d"): 3.0}, screen_errors={S(c): 9.8 for c in POOL},
+               scores={S(c): 3.0 for c in POOL})
+    out = _select_scored(t)
+    assert t.fitted == [] and out.steps == []
+
+
+def test_significant_errors_keep_their_places_and_scores_fill_the_rest_strongest_first():
+    # "a" screens significant; "c", "d" and "e" have significant scores: two free places go to
+    # the strongest scores, "e" (80) and "d" (40), not "c" (20)
+    t = Scored({S(): 10.0, S("a"): 5.0}, screen_errors={S("a"): 6.0, S("b"): 9.7, S("c"): 9.8,
+                                                        S("d"): 9.9, S("e"): 9.9},
+               scores={S("c"): 20.0, S("d"): 40.0, S("e"): 80.0})
+    _select_scored(t)
+    first = set(t.fitted[: sel.SCREEN_KEEP])
+    assert first == {S("a"), S("e"), S("d")}
+
+
+def test_a_large_score_is_judged_by_the_bonferroni_share_of_its_step():
+    # the tail of 9 on one coordinate is 0.0027: significant alone at 0.01, not over 5 singles
+    one = sel.Screened(("a",), 9.9, 9.0, 1, "off", None, 1)
+    assert sel.score_significant(one, 1)
+    assert not sel.score_significant(one, 5)
+    assert not sel.score_significant(sel.Screened(("a",), 9.9, 9.0, 1, "short fit"), 1)
