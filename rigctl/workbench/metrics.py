@@ -223,44 +223,41 @@ def _score(dataset: Dataset, model_events: list[EventTable],
     return Score(_equalise(vec, dataset, counts), error, feature_error, dataset.n_events, comps)
 
 
+def layout(dataset: Dataset) -> list[tuple[str, int]]:
+    """The layout of :func:`score`'s residual vector on ``dataset``, whatever the model: its
+    segments in order, each a feature and its number of entries. An entry per block of each event
+    feature of each run (``drop_N`` followed by an entry per drive segment: spurious slips), per
+    initial-stage band of each run, and per run that measured an image feature, all of them the
+    data's (:func:`_score` appends its parts in this order)."""
+    segments: list[tuple[str, int]] = []
+    for name in EVENT_FEATURES:
+        for run in dataset.runs:
+            segments.append((name, len(run.blocks)))
+            if name == "drop_N":
+                segments.append((name, run.drive.n_segments()))
+    segments.append((INIT_FEATURE, sum(int(r.events.init_k_N_per_m.shape[0])
+                                       for r in dataset.runs)))
+    for name in IMAGE_FEATURES:
+        segments.append((name, sum(1 for r in dataset.runs if r.image is not None
+                                   and math.isfinite(r.image.measured()[name]))))
+    return segments
+
+
 def residual_length(dataset: Dataset) -> int:
-    """The length of :func:`score`'s residual vector on ``dataset``, whatever the model: it has an
-    entry per block of each event feature of each run, per drive segment of each run (spurious
-    slips), per initial-stage band of each run and per image feature a run measured, all of them
-    the data's (:func:`_score`). A fit needs it for a point whose model cannot be run, without
-    running a model."""
-    n = 0
-    for run in dataset.runs:
-        n += len(EVENT_FEATURES) * len(run.blocks) + run.drive.n_segments()
-        n += int(run.events.init_k_N_per_m.shape[0])
-        if run.image is not None:
-            n += sum(1 for v in run.image.measured().values() if math.isfinite(v))
-    return n
+    """The length of :func:`score`'s residual vector on ``dataset`` (:func:`layout`). A fit needs
+    it for a point whose model cannot be run, without running a model."""
+    return sum(n for _, n in layout(dataset))
 
 
 def _equalise(vec: FloatArray, dataset: Dataset, counts: dict[str, int]) -> FloatArray:
-    """Scale each feature's entries by 1/sqrt(its block count) so that |vec|^2 = n_feat * E^2."""
+    """Scale each feature's entries (:func:`layout`) by 1/sqrt(its count of terms) so that
+    |vec|^2 = n_feat * E^2 (a feature with no term weighs nothing)."""
     out = vec.copy()
     pos = 0
-    for name in EVENT_FEATURES:
-        w = 1.0 / math.sqrt(counts[name]) if counts.get(name) else 0.0
-        for run in dataset.runs:
-            nb = len(run.blocks)
-            out[pos : pos + nb] *= w
-            pos += nb
-            if name == "drop_N":
-                ns = run.drive.n_segments()
-                out[pos : pos + ns] *= w
-                pos += ns
-    w = 1.0 / math.sqrt(counts[INIT_FEATURE]) if counts.get(INIT_FEATURE) else 0.0
-    n_init = sum(r.events.init_k_N_per_m.shape[0] for r in dataset.runs)
-    out[pos : pos + n_init] *= w
-    pos += n_init
-    for name in IMAGE_FEATURES:  # one entry per run that has the feature, in run order
-        n = counts.get(name, 0)
-        if n:
-            out[pos : pos + n] *= 1.0 / math.sqrt(n)
-            pos += n
+    for name, n in layout(dataset):
+        c = counts.get(name, 0)
+        out[pos : pos + n] *= 1.0 / math.sqrt(c) if c else 0.0
+        pos += n
     return out
 
 

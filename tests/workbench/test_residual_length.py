@@ -39,7 +39,11 @@ def _lengths(ds: Dataset) -> set[int]:
     """The residual's length for the preset and for models far from it."""
     out = set()
     for values in ({}, {"mu_k": 0.05}, {"mu_s": 0.3, "k0_N_per_m": 3e5}):
-        out.add(int(evaluate(ds, PAPER.with_values(values)).score.vector.shape[0]))
+        sc = evaluate(ds, PAPER.with_values(values)).score
+        out.add(int(sc.vector.shape[0]))
+        # the layout that sizes the vector also weighs it: |v|^2 = n_features * E^2
+        assert float(sc.vector @ sc.vector) == pytest.approx(
+            len(sc.feature_error) * sc.error**2, rel=1e-9)
     return out
 
 
