@@ -225,8 +225,9 @@ def gate(model: FitResult, singles: Sequence[Screened], pairs: Sequence[Screened
     singles whose score is significant (:func:`score_significant`), the smallest tail probability
     first."""
     kept = [s for s in singles[:SCREEN_KEEP] if promising(model, s, n_events)]
+    chosen = {s.effects for s in kept}
     by_score = sorted((s for s in singles
-                       if s not in kept and score_significant(s, len(singles))),
+                       if s.effects not in chosen and score_significant(s, len(singles))),
                       key=lambda s: float(chi2.logsf(s.score, s.score_df)))
     kept += by_score[:SCREEN_KEEP - len(kept)]
     return kept + [s for s in pairs[:SCREEN_KEEP] if promising(model, s, n_events)]
