@@ -270,7 +270,8 @@ def forward_step(
         res = fit(dataset, with_effects(model.choice, s.effects),
                   starts=() if s.start is None else (s.start,))
         name = " + ".join(s.effects)
-        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g} {clock.finished(i)}")
+        took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
+        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
         trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
     trials.sort(key=lambda t: _finite(t.fit.error))
     best_single = next((t for t in trials if len(t.effects) == 1 and t.score.significant), None)

@@ -316,3 +316,18 @@ def test_a_large_score_is_judged_by_the_bonferroni_share_of_its_step():
     assert sel.score_significant(one, 1)
     assert not sel.score_significant(one, 5)
     assert not sel.score_significant(sel.Screened(("a",), 9.9, 9.0, 1, "short fit"), 1)
+
+
+def test_each_full_fit_says_how_long_it_took():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0})
+    base = t.fit(DATASET, ModelChoice("paper"))
+
+    def timed(ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
+        res = t.fit(ds, choice, starts=starts)
+        return FitResult(res.choice, res.error, {}, res.free, elapsed_s=42.4)
+
+    said: list[str] = []
+    sel.select_effects(DATASET, base, list(POOL), fit=timed, screen=sel.by_short_fits(t.screen),
+                       say=said.append)
+    fitted = [m for m in said if m.strip().startswith("fitted")]
+    assert fitted and all(" in 42 s [" in m for m in fitted)
