@@ -28,28 +28,39 @@ from rigctl.workbench.selection import Selection, select_effects
 
 Say = Callable[[str], None]
 
+TIME_LIMIT_SHARE = 0.9
+"""A fit that took this share of its time limit or more is reported as ended by it: the search
+stops its global stage early enough to polish within the limit at the measured cost per
+evaluation, so a limited fit ends a little before the limit, not at it."""
+
 
 def auto_select(
     dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None = None,
     pool: Sequence[str] | None = None, cancel: threading.Event | None = None,
-    say: Say = lambda _m: None,
+    say: Say = lambda _m: None, fit_wall_s: float | None = None,
 ) -> Selection:
     """Identify ``model`` (unless it is a fit already) and choose its effects from ``pool``
     (default: every library and plug-in effect it lacks). ``cancel``, an event shared by every
     search and screen of the run, ends it when set (the search running raises
     :class:`~rigctl.workbench.budget.SearchCancelledError`); each search keeps its own default
-    budget."""
+    budget. ``fit_wall_s``: the time limit of each fit after the model's own (``--timeout``): a
+    fit that reaches it ends with its best point so far, judged like any other; the model's own
+    fit has none (every step is judged against it)."""
 
     def fit(ds: Dataset, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
         try:
-            return search_model(ds, choice, workers=workers, with_uncertainty=False,
-                                starts=starts, cancel=cancel)
+            res = search_model(ds, choice, workers=workers, with_uncertainty=False,
+                               starts=starts, cancel=cancel, max_wall_s=fit_wall_s)
         except (ParameterError, SimulationError) as exc:
             # a candidate that cannot be identified (no valid start, a plug-in term that fails)
             # is a failed trial, scored at an infinite error: it is never added, and an effect
             # whose removal cannot be fitted is kept
             say(f"  {choice.label()}: no fit ({str(exc).splitlines()[0] if str(exc) else exc})")
             return FitResult(choice, math.inf, {}, (), message=f"fit failed: {exc}")
+        if fit_wall_s is not None and res.elapsed_s >= TIME_LIMIT_SHARE * fit_wall_s:
+            say(f"  {choice.label()}: its fit reached its time limit of {fit_wall_s:.0f} s "
+                f"(--timeout); its best point so far is judged")
+        return res
 
     def screen(ds: Dataset, fitted: FitResult, sets: Sequence[tuple[str, ...]]
                ) -> list[Screened]:

@@ -22,6 +22,7 @@ from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.interrupts import signals_raise
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
+from rigctl.workbench.parallel import DEFAULT_TIMEOUT_S
 from rigctl.workbench.ranking import (
     CandidateScore,
     Verdict,
@@ -43,17 +44,20 @@ def diagnose_auto(
     dataset: Dataset, choice: ModelChoice, *, candidates: Sequence[str] | None = None,
     workers: int | None = None, progress: Say | None = None, baseline: FitResult | None = None,
     on_fit: FitListener | None = None, cancel: Event | None = None,
+    fit_wall_s: float | None = DEFAULT_TIMEOUT_S,
 ) -> Diagnosis:
     """``choice``'s effects chosen on ``dataset`` (module docstring). ``baseline``: the model
     already identified; ``on_fit``: each fully fitted set's fit, as the rounds end; ``cancel``:
-    an event that ends the run (:class:`~rigctl.workbench.budget.SearchCancelledError`)."""
+    an event that ends the run (:class:`~rigctl.workbench.budget.SearchCancelledError`);
+    ``fit_wall_s``: each fit's time limit after the model's own (``--timeout``, None: none;
+    :func:`~rigctl.workbench.auto.auto_select`)."""
     say = progress or (lambda _m: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
         f"{len(pool)} candidate effects ...")
     with signals_raise():  # Ctrl-C and SIGTERM end the run: every pool terminated
         sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
-                          cancel=cancel, say=say)
+                          cancel=cancel, say=say, fit_wall_s=fit_wall_s)
     if on_fit is not None:
         for rnd in sel.rounds:
             for t in rnd.trials:

@@ -353,7 +353,7 @@ def diagnose(
 
         return diagnose_auto(dataset, choice, candidates=candidates,
                              workers=0 if in_process else workers, progress=progress,
-                             baseline=baseline, on_fit=on_fit)
+                             baseline=baseline, on_fit=on_fit, fit_wall_s=timeout_s)
     say = progress or (lambda _msg: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")

@@ -141,13 +141,17 @@ def search_model(
     progress: Progress | None = None,
     starts: Sequence[ModelChoice] = (),
     cancel: threading.Event | None = None,
+    max_wall_s: float | None = None,
 ) -> FitResult:
     """Identify ``choice`` on ``dataset`` by the one search (module docstring).
 
     ``starts``: more starts, the same model at other values (a screen's best point of the
     effects being added, :class:`~rigctl.workbench.screening.Screened`), ranked with the others.
     ``cancel``: an event that cancels the search as the budget's own does (one event shared by
-    the searches of a longer run: a diagnose's Cancel).
+    the searches of a longer run: a diagnose's Cancel). ``max_wall_s``: a wall-time limit on the
+    default budget (``budget`` absent): the search ends within about one batch of evaluations of
+    it, with its best point so far polished (the stages keep the polish's share of the time at
+    the measured cost per evaluation).
 
     ``budget``: evaluations and/or seconds (default: :func:`default_budget`, a cap: the search
     ends where it stops gaining); ``workers``: worker processes evaluating a batch of points
@@ -173,7 +177,11 @@ def search_model(
     at_off = choice.with_values(space.values(space.off_point(space.vector(choice))))
     if not (physically_valid(choice, fns) or physically_valid(at_off, fns)):
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
-    budget = budget or default_budget(space.dim)
+    if max_wall_s is not None and not max_wall_s > 0.0:
+        raise ValueError(f"max_wall_s must be positive, not {max_wall_s}")
+    if budget is None:
+        budget = default_budget(space.dim)
+        budget.max_wall_s = max_wall_s
     if budget.progress is None:
         budget.progress = progress
     if cancel is not None:

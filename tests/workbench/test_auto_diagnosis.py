@@ -4,6 +4,7 @@ replaced (what is under test is the bookkeeping, not the simulation)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any, cast
 
@@ -169,3 +170,45 @@ def test_an_undecided_step_is_an_indistinguishable_verdict_with_the_runs_that_re
     js = diag.to_json(True)
     assert js["final_verdict"] == "indistinguishable" and js["final_model"] == "paper"
     assert js["final_candidates"] == ["stribeck", "rate_state"]
+
+
+def test_each_fit_after_the_model_s_own_has_the_time_limit_and_says_when_it_ended_it(
+        monkeypatch):
+    from rigctl.workbench import auto
+
+    base = fit((), 10.0)
+    limits: list[Any] = []
+
+    def search(dataset: Any, choice: ModelChoice, **kw: Any) -> FitResult:
+        limits.append(kw.get("max_wall_s"))
+        res = fit(choice.effects, 4.0 if choice.effects == ("a",) else 10.0)
+        return replace(res, elapsed_s=59.0 if choice.effects == ("a",) else 1.0)
+
+    def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:
+        return sorted((screened(s, 5.0 if s == ("a",) else 9.9) for s in sets),
+                      key=lambda s: s.error)
+
+    monkeypatch.setattr(auto, "search_model", search)
+    monkeypatch.setattr(auto, "score_screen", screen)
+    monkeypatch.setattr(auto, "error_or_inf", lambda ds, c, fns: 10.0)
+    monkeypatch.setattr(auto, "fn_range", lambda ds: (1.0, 2.0))
+    said: list[str] = []
+    out = auto.auto_select(DATASET, base, pool=["a", "b"], say=said.append, fit_wall_s=60.0)
+    assert out.final.choice.effects == ("a",)
+    assert limits and all(x == 60.0 for x in limits)
+    ended = [m for m in said if "reached its time limit of 60 s" in m]
+    assert len(ended) == 1 and "paper + a" in ended[0]
+
+
+def test_diagnose_hands_its_timeout_to_auto_as_each_fit_s_limit(monkeypatch):
+    from rigctl.workbench import diagnose as dg
+
+    got: dict[str, Any] = {}
+
+    def fake(*a: Any, **kw: Any) -> Any:
+        got.update(kw)
+        return "diagnosis"
+
+    monkeypatch.setattr(ad, "diagnose_auto", fake)
+    assert dg.diagnose(DATASET, ModelChoice("paper"), auto=True, timeout_s=42.0) == "diagnosis"
+    assert got["fit_wall_s"] == 42.0

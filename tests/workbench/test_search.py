@@ -170,3 +170,20 @@ def test_stall_generations_is_the_step_size_paths_horizon():
     # 1 / c_sigma with c_sigma = (mu_eff + 2) / (n + mu_eff + 5) (Hansen 2016, eq. 55)
     assert stall_generations(9, 2.9) == 4
     assert stall_generations(40, 5.0) == 8
+
+
+def test_a_wall_limit_ends_the_search_near_it_with_its_best_point(short):
+    free = search_model(short, ModelChoice("paper"), workers=2, with_uncertainty=False)
+    limit_s = 0.4 * free.elapsed_s  # the search alone would take 2.5 times longer
+    res = search_model(short, ModelChoice("paper"), workers=2, with_uncertainty=False,
+                       max_wall_s=limit_s)
+    assert math.isfinite(res.error) and not res.misses_most_slips
+    assert res.n_evaluations < free.n_evaluations
+    # within the limit and one last batch (an evaluation here takes a fraction of a second)
+    assert res.elapsed_s < limit_s + 3.0
+    assert "polish" in res.message
+
+
+def test_a_wall_limit_must_be_positive(short):
+    with pytest.raises(ValueError, match="max_wall_s"):
+        search_model(short, ModelChoice("paper"), workers=0, max_wall_s=0.0)
