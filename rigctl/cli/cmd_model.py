@@ -82,7 +82,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     dia.add_argument("--tls-key", type=Path, default=None, metavar="KEY.pem",
                      help="this client's private key for a tls:// scheduler")
     dia.add_argument("--timeout", type=float, default=300.0, metavar="S",
-                     help="time limit of one candidate fit in seconds (default 300)")
+                     help="time limit of one candidate fit in seconds (default 300); with "
+                          "--auto a fit that reaches it ends with its best point so far")
     dia.set_defaults(func=run_diagnose)
 
 
