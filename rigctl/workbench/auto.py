@@ -57,7 +57,8 @@ def auto_select(
             # whose removal cannot be fitted is kept
             say(f"  {choice.label()}: no fit ({str(exc).splitlines()[0] if str(exc) else exc})")
             return FitResult(choice, math.inf, {}, (), message=f"fit failed: {exc}")
-        if fit_wall_s is not None and res.elapsed_s >= TIME_LIMIT_SHARE * fit_wall_s:
+        if fit_wall_s is not None and res.elapsed_s >= TIME_LIMIT_SHARE * fit_wall_s \
+                and "budget" in res.message:  # a stage ended on the budget, not by converging
             say(f"  {choice.label()}: its fit reached its time limit of {fit_wall_s:.0f} s "
                 f"(--timeout); its best point so far is judged")
         return res
