@@ -36,10 +36,13 @@ def _diagnose_json(capsys: pytest.CaptureFixture[str], *data: str) -> dict:  # t
 # end to end: two diagnoses and two protocol runs on the simulated rig, 150-180 s of CPU; a full
 # suite run beside two benchmarks took it past the default 300 s limit (which is for hangs)
 @pytest.mark.timeout(900)
-@pytest.mark.xfail(strict=True, reason="the premise is gone: on the first campaign the diagnosis "
-                   "now names the hidden interface_damping directly (delta BIC -18 against -11.8 "
-                   "for rate_state) instead of 'indistinguishable'; a case that needs the "
-                   "suggested run is to be found again (issue 34)")
+@pytest.mark.xfail(strict=False, reason="the premise depends on the machine: with the same code "
+                   "and seeds, the first campaign's diagnosis is 'indistinguishable' on one "
+                   "machine (an AVX-512 Xeon, 2026-11-30: the test then passes end to end) and "
+                   "names the hidden interface_damping directly on another (delta BIC -18 "
+                   "against -11.8 for rate_state); near-ties of the ranking's fits follow "
+                   "floating-point differences between machines. A case that needs the suggested "
+                   "run on every machine is to be found (issue 34)")
 def test_suggested_runs_tell_indistinguishable_effects_apart(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
