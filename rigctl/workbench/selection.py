@@ -264,12 +264,12 @@ def forward_step(
     trials: list[Trial] = []
     clock = RoundClock([1.0] * len(kept))
     for i, s in enumerate(kept):
+        name = " + ".join(s.effects)
         if not promising(model, s, n):
-            say(f"  {' + '.join(s.effects)}: its screened error is not significant, its score "
+            say(f"  {name}: its screened error is not significant, its score "
                 f"is ({s.score:.3g}, {s.score_df} coordinates): fitted fully")
         res = fit(dataset, with_effects(model.choice, s.effects),
                   starts=() if s.start is None else (s.start,))
-        name = " + ".join(s.effects)
         took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
         say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
         trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))

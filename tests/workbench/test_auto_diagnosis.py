@@ -111,6 +111,16 @@ def test_diagnose_auto_hands_the_fits_to_on_fit(monkeypatch):
     assert diag.final_model is t_a.fit
 
 
+def _patch_auto(monkeypatch: pytest.MonkeyPatch, search: Any, screen: Any) -> None:
+    """auto_select's search and screen replaced; every model without effects errs 10.0 there."""
+    from rigctl.workbench import auto
+
+    monkeypatch.setattr(auto, "search_model", search)
+    monkeypatch.setattr(auto, "score_screen", screen)
+    monkeypatch.setattr(auto, "error_or_inf", lambda ds, c, fns: 10.0)
+    monkeypatch.setattr(auto, "fn_range", lambda ds: (1.0, 2.0))
+
+
 def test_a_candidate_that_cannot_be_fitted_is_a_failed_trial_not_a_failed_run(monkeypatch):
     from rigctl.model import ParameterError
     from rigctl.workbench import auto
@@ -126,10 +136,7 @@ def test_a_candidate_that_cannot_be_fitted_is_a_failed_trial_not_a_failed_run(mo
         return sorted((screened(s, 5.0 if s == ("a",) else 6.0) for s in sets),
                       key=lambda s: s.error)
 
-    monkeypatch.setattr(auto, "search_model", search)
-    monkeypatch.setattr(auto, "score_screen", screen)
-    monkeypatch.setattr(auto, "error_or_inf", lambda ds, c, fns: 10.0)
-    monkeypatch.setattr(auto, "fn_range", lambda ds: (1.0, 2.0))
+    _patch_auto(monkeypatch, search, screen)
     said: list[str] = []
     out = auto.auto_select(DATASET, base, pool=["a", "b"], say=said.append)
     assert out.final.choice.effects == ("a",)
@@ -190,10 +197,7 @@ def test_each_fit_after_the_model_s_own_has_the_time_limit_and_says_when_it_ende
         return sorted((screened(s, 5.0 if s == ("a",) else 9.9) for s in sets),
                       key=lambda s: s.error)
 
-    monkeypatch.setattr(auto, "search_model", search)
-    monkeypatch.setattr(auto, "score_screen", screen)
-    monkeypatch.setattr(auto, "error_or_inf", lambda ds, c, fns: 10.0)
-    monkeypatch.setattr(auto, "fn_range", lambda ds: (1.0, 2.0))
+    _patch_auto(monkeypatch, search, screen)
     said: list[str] = []
     out = auto.auto_select(DATASET, base, pool=["a", "b"], say=said.append, fit_wall_s=60.0)
     assert out.final.choice.effects == ("a",)
