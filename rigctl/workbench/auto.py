@@ -28,12 +28,6 @@ from rigctl.workbench.selection import Selection, select_effects
 
 Say = Callable[[str], None]
 
-TIME_LIMIT_SHARE = 0.9
-"""A fit that took this share of its time limit or more is reported as ended by it: the search
-stops its global stage early enough to polish within the limit at the measured cost per
-evaluation, so a limited fit ends a little before the limit, not at it."""
-
-
 def auto_select(
     dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None = None,
     pool: Sequence[str] | None = None, cancel: threading.Event | None = None,
@@ -57,8 +51,7 @@ def auto_select(
             # whose removal cannot be fitted is kept
             say(f"  {choice.label()}: no fit ({str(exc).splitlines()[0] if str(exc) else exc})")
             return FitResult(choice, math.inf, {}, (), message=f"fit failed: {exc}")
-        if fit_wall_s is not None and res.elapsed_s >= TIME_LIMIT_SHARE * fit_wall_s \
-                and "budget" in res.message:  # a stage ended on the budget, not by converging
+        if res.time_limited:
             say(f"  {choice.label()}: its fit reached its time limit of {fit_wall_s:.0f} s "
                 f"(--timeout); its best point so far is judged")
         return res

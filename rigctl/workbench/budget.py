@@ -89,6 +89,16 @@ class Budget:
                 left = min(left, math.floor(t_left / cost))
         return left
 
+    def time_binds(self) -> bool:
+        """Whether the wall limit is what limits the evaluations left: a limit on seconds is set
+        and the time left buys fewer evaluations than the count left allows (a search that
+        stops on its budget now stops on its time)."""
+        if self.max_wall_s is None:
+            return False
+        count_left = math.inf if self.max_evaluations is None else \
+            float(max(self.max_evaluations - self.used, 0))
+        return self.evaluations_left() < count_left
+
     def exhausted(self) -> bool:
         """Nothing is left: the evaluations are spent or the time is up."""
         return self.evaluations_left() <= 0.0

@@ -119,6 +119,8 @@ class FitResult:
     """Wall and CPU seconds of the fit (candidate fits; on a busy machine wall > CPU)."""
     misses_most_slips: bool = False
     """The fitted model misses most measured slips (:func:`misses_most_slips`): a trap, not a fit."""
+    time_limited: bool = False
+    """The search ended on its wall-time limit, not by converging (its best point so far)."""
 
     @property
     def n_params(self) -> int:

@@ -149,9 +149,10 @@ def search_model(
     effects being added, :class:`~rigctl.workbench.screening.Screened`), ranked with the others.
     ``cancel``: an event that cancels the search as the budget's own does (one event shared by
     the searches of a longer run: a diagnose's Cancel). ``max_wall_s``: a wall-time limit on the
-    default budget (``budget`` absent): the search ends within about one batch of evaluations of
-    it, with its best point so far polished (the stages keep the polish's share of the time at
-    the measured cost per evaluation).
+    default budget (refused with ``budget``, which carries its own): the search ends within
+    about one batch of evaluations of it, with its best point so far polished (the stages keep
+    the polish's share of the time at the measured cost per evaluation), and its result says so
+    (``time_limited``).
 
     ``budget``: evaluations and/or seconds (default: :func:`default_budget`, a cap: the search
     ends where it stops gaining); ``workers``: worker processes evaluating a batch of points
@@ -179,6 +180,9 @@ def search_model(
         raise ParameterError(f"{choice.label()}: kinetic friction is not below static friction")
     if max_wall_s is not None and not max_wall_s > 0.0:
         raise ValueError(f"max_wall_s must be positive, not {max_wall_s}")
+    if max_wall_s is not None and budget is not None:
+        raise ValueError("max_wall_s limits the default budget; with a budget given, set its "
+                         "max_wall_s instead")
     if budget is None:
         budget = default_budget(space.dim)
         budget.max_wall_s = max_wall_s
@@ -197,7 +201,7 @@ def search_model(
         search.polish()
         result = search.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
-                   cpu_s=time.process_time() - c0)
+                   cpu_s=time.process_time() - c0, time_limited=search.time_limited)
 
 
 def added_effects(choice: ModelChoice) -> list[str]:
@@ -259,6 +263,9 @@ class SearchState:
         the slips."""
         self.failed_cost = FAILED_RESIDUAL**2
         self.stop_reason = ""
+        self.time_limited = False
+        """A stage ended on the budget while its wall limit was what limited it
+        (:meth:`Budget.time_binds`): the search ended on its time, not by converging."""
         self.cols = list(range(len(space.free)))
         """The coordinates differenced: all but the element count (an integer: no slope)."""
         self.steps: dict[int, float] = {}
@@ -484,8 +491,11 @@ class SearchState:
         prior = np.linalg.inv(prior_cov)
         self.mean, self.cov = self.x_best.copy(), prior_cov
         at = self.residual_best
-        if at is None or self.budget.evaluations_left() - self.reserve() < \
+        if at is None:
+            return
+        if self.budget.evaluations_left() - self.reserve() < \
                 FD_TRIES * len(self.cols) + popsize(self.space.dim) // 2:
+            self.time_limited |= self.budget.time_binds()
             return
         used = self.budget.used
         x0, r0 = at
@@ -540,6 +550,7 @@ class SearchState:
         while True:
             if self.budget.evaluations_left() - self.reserve() < lam:
                 self.stop_reason = "budget"
+                self.time_limited |= self.budget.time_binds()
                 break
             ys = es.ask()
             xs = [m + L @ y for y in ys]
@@ -630,6 +641,7 @@ class SearchState:
             left = self.budget.evaluations_left() - 1 - \
                 (self.jacobian_cost() if self.with_uncertainty else 0)
             if left < self.jacobian_cost() + 1:
+                self.time_limited |= self.budget.time_binds()
                 raise _ConvergedError("the budget would not pay another Jacobian")
             last.append(cost)
             current[:] = z

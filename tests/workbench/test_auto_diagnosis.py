@@ -190,7 +190,8 @@ def test_each_fit_after_the_model_s_own_has_the_time_limit_and_says_when_it_ende
         limits.append(kw.get("max_wall_s"))
         res = fit(choice.effects, 4.0 if choice.effects == ("a",) else 10.0)
         if choice.effects == ("a",):  # ended by its budget's time
-            return replace(res, elapsed_s=59.0, message="starts 8; CMA-ES 120 (budget)")
+            return replace(res, elapsed_s=59.0, message="starts 8; CMA-ES 120 (budget)",
+                           time_limited=True)
         return replace(res, elapsed_s=1.0, message="starts 8; CMA-ES 40 (no gain)")
 
     def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:

@@ -52,6 +52,22 @@ def test_whichever_limit_comes_first_ends_it():
     clock.t += 5.0  # 1 s per evaluation: 5 s buy 5 more, fewer than the 95 counted
     assert b.evaluations_left() == 5
     assert b.fraction_done == pytest.approx(0.5)
+    assert b.time_binds()
+
+
+def test_the_time_binds_only_where_it_buys_fewer_evaluations_than_the_count_left():
+    clock = FakeClock()
+    assert not Budget(max_evaluations=10, clock=clock).time_binds()  # no wall limit
+    b = Budget(max_evaluations=10, max_wall_s=100.0, clock=clock)
+    b.spend(5)
+    clock.t += 5.0  # 1 s per evaluation: 95 s buy 95, more than the 5 counted
+    assert b.evaluations_left() == 5 and not b.time_binds()
+    b.spend(4)
+    clock.t += 85.0  # 10 s per evaluation: 10 s left buy 1, as many as counted
+    assert b.evaluations_left() == 1 and not b.time_binds()
+    clock.t += 5.0  # 5 s left buy none of the 1 counted
+    assert b.evaluations_left() == 0 and b.time_binds()
+    assert Budget(max_wall_s=1.0, clock=clock).time_binds() is False  # no cost measured: inf
 
 
 def test_a_cancel_is_raised_at_the_next_check():

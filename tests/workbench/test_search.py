@@ -182,8 +182,12 @@ def test_a_wall_limit_ends_the_search_near_it_with_its_best_point(short):
     # within the limit and one last batch (an evaluation here takes a fraction of a second)
     assert res.elapsed_s < limit_s + 3.0
     assert "polish" in res.message
+    assert res.time_limited and not free.time_limited
 
 
 def test_a_wall_limit_must_be_positive(short):
     with pytest.raises(ValueError, match="max_wall_s"):
         search_model(short, ModelChoice("paper"), workers=0, max_wall_s=0.0)
+    with pytest.raises(ValueError, match="budget"):  # a given budget carries its own limit
+        search_model(short, ModelChoice("paper"), workers=0, max_wall_s=10.0,
+                     budget=Budget(max_evaluations=10))
