@@ -11,7 +11,7 @@ from rigctl.model.effects import LIBRARY, CoreParams, Effect, LinearTerms, SlipC
 from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError, ParamInfo, ParamSpec
 from rigctl.model.result import SimResult, SlipEvent
-from rigctl.model.simulator import Simulator, Stepper, StepperState
+from rigctl.model.simulator import Simulator, Stepper, StepperState, TimeLimitError
 from rigctl.model.spec import BASES, ModelSpec, build_model, effect_names
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "SlipEvent",
     "Stepper",
     "StepperState",
+    "TimeLimitError",
     "build_model",
     "effect_names",
 ]

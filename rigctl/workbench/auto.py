@@ -51,6 +51,7 @@ def auto_select(
             # whose removal cannot be fitted is kept
             say(f"  {choice.label()}: no fit ({str(exc).splitlines()[0] if str(exc) else exc})")
             return FitResult(choice, math.inf, {}, (), message=f"fit failed: {exc}")
+        _say_timed_out(res, say)
         if res.time_limited:
             say(f"  {choice.label()}: its fit reached its time limit of {fit_wall_s:.0f} s "
                 f"(--timeout); its best point so far is judged")
@@ -64,7 +65,16 @@ def auto_select(
     base = model if isinstance(model, FitResult) else search_model(
         dataset, model, workers=workers, with_uncertainty=False, cancel=cancel)
     say(f"{base.choice.label()}: E {base.error:.3g}")
+    _say_timed_out(base, say)
     fns = fn_range(dataset)
     candidates = candidate_effects(base.choice) if pool is None else list(pool)
     return select_effects(dataset, base, candidates, fit=fit, screen=screen, say=say,
                           error_of=lambda ds, c: error_or_inf(ds, c, fns))
+
+
+def _say_timed_out(res: FitResult, say: Say) -> None:
+    """Say how many of a fit's points the per-evaluation time limit stopped: the part of a search
+    that depends on the machine's speed and load (rigctl.workbench.search_pool)."""
+    if res.n_timed_out:
+        say(f"  {res.choice.label()}: {res.n_timed_out} of its {res.n_evaluations} simulations "
+            f"were stopped at the per-evaluation time limit")

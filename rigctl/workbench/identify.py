@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rigctl.errors import SimulationError
-from rigctl.model import ParameterError, ParamInfo
+from rigctl.model import ParameterError, ParamInfo, TimeLimitError
 from rigctl.records.dataset import Dataset
 from rigctl.records.rig_description import RigDescription
 from rigctl.records.ringing import ringing_mass
@@ -121,6 +121,8 @@ class FitResult:
     """The fitted model misses most measured slips (:func:`misses_most_slips`): a trap, not a fit."""
     time_limited: bool = False
     """The search ended on its wall-time limit, not by converging (its best point so far)."""
+    n_timed_out: int = 0
+    """Points of the search stopped at the per-evaluation time limit (search_pool)."""
 
     @property
     def n_params(self) -> int:
@@ -174,6 +176,8 @@ class Objective:
         self.failed_norm = FAILED_RESIDUAL
         self._seen_valid = False
         self._failed: set[bytes] = set()
+        self._timed_out: set[bytes] = set()
+        """Failed points whose model passed :attr:`time_limit_s` (a subset of the failed)."""
         self._trapped: set[bytes] = set()
         """Points whose model misses most measured slips (:data:`MAX_MISSING_FRACTION`): never
         :attr:`best_u`."""
@@ -219,6 +223,9 @@ class Objective:
                 self._seen_valid = True
                 self.failed_norm = max(FAILED_RESIDUAL,
                                        FAILED_FACTOR * float(np.linalg.norm(vec)))
+        except TimeLimitError:
+            vec = None
+            self._timed_out.add(key)
         except SimulationError:
             # not physically valid, or cannot be run (e.g. slips far more often than the record
             # can show: evaluate.slip_budget; or past its time limit): the failure penalty
@@ -240,6 +247,10 @@ class Objective:
         """Whether ``u`` was evaluated as not physically valid (its residual is the failure
         penalty, not the model's)."""
         return np.asarray(u, dtype=np.float64).tobytes() in self._failed
+
+    def timed_out(self, u: FloatArray) -> bool:
+        """Whether the model at ``u`` failed by passing :attr:`time_limit_s`."""
+        return np.asarray(u, dtype=np.float64).tobytes() in self._timed_out
 
     def trapped(self, u: FloatArray) -> bool:
         """Whether the model at ``u`` misses most measured slips (:data:`MAX_MISSING_FRACTION`)."""

@@ -201,7 +201,8 @@ def search_model(
         search.polish()
         result = search.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
-                   cpu_s=time.process_time() - c0, time_limited=search.time_limited)
+                   cpu_s=time.process_time() - c0, time_limited=search.time_limited,
+                   n_timed_out=pool.n_timed_out)
 
 
 def added_effects(choice: ModelChoice) -> list[str]:

@@ -109,6 +109,8 @@ class Outcome:
     vector: FloatArray | None = None
     elapsed_s: float = math.nan
     """Wall seconds the evaluation took (NaN where it was stopped or failed at once)."""
+    timed_out: bool = False
+    """The model run passed the point's time limit (a :data:`FAILED` point)."""
 
 
 @dataclass(frozen=True)
@@ -157,7 +159,7 @@ class _Evaluator:
         except (SimulationError, ParameterError):
             return Outcome(np.inf, FAILED)
         if obj.failed(point.u):  # the vector is the failure penalty: a least-squares fit's value
-            return Outcome(np.inf, FAILED, vec)
+            return Outcome(np.inf, FAILED, vec, timed_out=obj.timed_out(point.u))
         return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec,
                        time.monotonic() - t0)
 
@@ -206,6 +208,9 @@ class EvaluationPool:
         self.workers = max(int(workers), 0)
         self._times: list[float] = []
         """Wall seconds of each evaluation that ran to its end (the time limit's median)."""
+        self.n_timed_out = 0
+        """Points stopped at the time limit: the part of a search that depends on the machine's
+        speed and load (a point a quiet run evaluates can be stopped on a busy one)."""
         self._local = _Evaluator(dataset, choice, free) if self.workers == 0 else None
         self._pool: Any = None
         if self.workers:
@@ -261,6 +266,7 @@ class EvaluationPool:
             out = self._wait(pending)
             self.budget.spend(len(out))
         self._times += [o.elapsed_s for o in out if math.isfinite(o.elapsed_s)]
+        self.n_timed_out += sum(1 for o in out if o.timed_out)
         return out
 
     def finish(self, task: FinishTask) -> FitResult:

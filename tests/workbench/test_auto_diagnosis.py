@@ -191,7 +191,7 @@ def test_each_fit_after_the_model_s_own_has_the_time_limit_and_says_when_it_ende
         res = fit(choice.effects, 4.0 if choice.effects == ("a",) else 10.0)
         if choice.effects == ("a",):  # ended by its budget's time
             return replace(res, elapsed_s=59.0, message="starts 8; CMA-ES 120 (budget)",
-                           time_limited=True)
+                           time_limited=True, n_timed_out=3, n_evaluations=130)
         return replace(res, elapsed_s=1.0, message="starts 8; CMA-ES 40 (no gain)")
 
     def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:
@@ -205,6 +205,9 @@ def test_each_fit_after_the_model_s_own_has_the_time_limit_and_says_when_it_ende
     assert limits and all(x == 60.0 for x in limits)
     ended = [m for m in said if "reached its time limit of 60 s" in m]
     assert len(ended) == 1 and "paper + a" in ended[0]
+    stopped = [m for m in said if "stopped at the per-evaluation time limit" in m]
+    assert stopped == ["  paper + a: 3 of its 130 simulations were stopped at the "
+                       "per-evaluation time limit"]
 
 
 def test_diagnose_hands_its_timeout_to_auto_as_each_fit_s_limit(monkeypatch):

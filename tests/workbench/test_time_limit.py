@@ -54,6 +54,8 @@ def test_the_first_point_is_timed_alone_and_a_slower_one_is_not_run_to_its_end(
         first, *rest = pool.evaluate(points)
         assert first.status == sp.OK and math.isfinite(first.elapsed_s)
         assert all(o.status == sp.FAILED and o.cost == math.inf for o in rest)
+        assert not first.timed_out and all(o.timed_out for o in rest)
+        assert pool.n_timed_out == 2  # counted, for the search's result (FitResult.n_timed_out)
         assert pool.time_limit_s() == pytest.approx(1e-6 * first.elapsed_s)
 
 
@@ -62,6 +64,7 @@ def test_the_limit_is_the_factor_times_the_median_and_never_below_the_floor(data
     with sp.EvaluationPool(dataset, choice, free, Budget(), 0) as pool:
         out = pool.evaluate(points)
         assert all(o.status == sp.OK for o in out)  # the default limit stops no ordinary point
+        assert pool.n_timed_out == 0
         median = float(np.median([o.elapsed_s for o in out]))
         assert pool.time_limit_s() == pytest.approx(
             max(sp.TIME_LIMIT_FLOOR_S, sp.TIME_LIMIT_FACTOR * median))
