@@ -15,7 +15,12 @@ the base parameters are set from what the measured events show directly (no simu
   (= rate / drive velocity), is the series stiffness ``1 / (1/K0 + 1/Kts)`` of drive and interface
   (paper Sec. 5.2: both carry Ft in stick). Where delta is measured, dFt/d(delta) in stick is Kts
   and K0 follows; without delta the two are not separable and keep the preset's ratio Kts/K0 (the
-  fit reports them as not determined).
+  fit reports them as not determined). Where no stick's loading ramp is read (sticks too short
+  for its 10-60 % window) but delta is measured, the slips show K0 instead: during a global slip
+  every element slides at its kinetic level, so only the drive spring changes its force, and
+  ``Ft = K0 (x_stage - X)`` (docs/model.md, section 1) gives ``drop = K0 (slip - v T_slip)``,
+  about ``K0 slip`` while the stage barely moves during the slip; ``K_eff`` is then the series of
+  that K0 and an interface at the preset's ratio Kts/K0.
 * **mass and damping** from a rig description (``m_kg``, ``c0_N_s_per_m``) where given; else from
   the post-slip ringing where the sampling resolves it (:mod:`rigctl.records.ringing`): in stick
   the mass rings between drive spring and interface, ``M = (K0 + Kts) / omega_n^2``, and decays at
@@ -89,7 +94,8 @@ class DataScale:
     mu_first: float
     """Median initial-stage peak / Fn (NaN without an initial stage)."""
     k_eff_N_per_m: float
-    """Median stick loading stiffness dFt/dx_stage (stable stage)."""
+    """Median stick loading stiffness dFt/dx_stage (stable stage); where no loading ramp is read,
+    the series stiffness implied by the slips' K0 (:func:`slip_k0`)."""
     k_stick_N_per_m: float
     """Median dFt/d(delta) in stick (NaN where delta was not measured or does not resolve it)."""
     stick_s: float
@@ -142,6 +148,11 @@ def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
             k_stick = _median(col("k_stick_N_per_m", True))
         elif n_rate:
             k_stick = math.inf
+    k_eff = _median(rates)
+    if not math.isfinite(k_eff) and delta_measured:
+        k0 = slip_k0(tabs)
+        ratio = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
+        k_eff = k0 * ratio / (1.0 + ratio)  # K0 in series with Kts = ratio K0 (NaN stays NaN)
     speeds = [np.abs(ev.covariates["v_drive_m_per_s"]) for ev in tabs]
     speeds = [s[s > 0] for s in speeds]
     return DataScale(
@@ -150,12 +161,27 @@ def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
         mu_peak=_median(col("peak_N", True, per_fn=True)),
         mu_trough=_median(col("trough_N", True, per_fn=True)),
         mu_first=_median(col("peak_N", False, per_fn=True)),
-        k_eff_N_per_m=_median(rates),
+        k_eff_N_per_m=k_eff,
         k_stick_N_per_m=k_stick,
         stick_s=_median(col("stick_s", True)),
         delta_measured=delta_measured,
         ringing=ringing or Ringing(),
     )
+
+
+def slip_k0(tables: Iterable[EventTable]) -> float:
+    """The drive spring K0 the stable slips show: the median of each slip's force drop over its
+    slip distance (``drop = K0 slip`` while every element slides and the stage barely moves,
+    module docstring). It reads low by the stage's travel during the slip, ``v T_slip`` against the
+    slip, which is small in stick-slip. NaN where no stable slip has both (no delta measured)."""
+    ratios = []
+    for ev in tables:
+        sel = ev.stage == 1
+        drop = np.abs(ev.features["drop_N"][sel])
+        slip = np.abs(ev.features["slip_m"][sel])
+        ok = np.isfinite(drop) & np.isfinite(slip) & (slip > 0) & (drop > 0)
+        ratios.append(drop[ok] / slip[ok])
+    return _median(ratios)
 
 
 def base_start(scale: DataScale, current: Mapping[str, float],
