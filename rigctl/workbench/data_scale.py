@@ -58,6 +58,8 @@ PRESET_V_M_PER_S = 1e-5
 PRESET_SAMPLE_RATE_HZ = 1024.0
 """This rig's DAQ rate (the preset's sensor time constant is three of its samples)."""
 PRESET_KT0_N_PER_M = 1.5e6
+PRESET_KTS_RATIO = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
+"""The preset's Kts / K0, kept where the data do not separate the two stiffnesses."""
 NEAR_PRESET = 3.0
 """A data scale within this factor of the preset's leaves the preset's effect defaults alone."""
 RESOLVED_FRACTION = 0.5
@@ -150,9 +152,8 @@ def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
             k_stick = math.inf
     k_eff = _median(rates)
     if not math.isfinite(k_eff) and delta_measured:
-        k0 = slip_k0(tabs)
-        ratio = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
-        k_eff = k0 * ratio / (1.0 + ratio)  # K0 in series with Kts = ratio K0 (NaN stays NaN)
+        k0 = slip_k0(tabs)  # in series with Kts = PRESET_KTS_RATIO K0 (NaN stays NaN)
+        k_eff = k0 * PRESET_KTS_RATIO / (1.0 + PRESET_KTS_RATIO)
     speeds = [np.abs(ev.covariates["v_drive_m_per_s"]) for ev in tabs]
     speeds = [s[s > 0] for s in speeds]
     return DataScale(
@@ -206,7 +207,6 @@ def base_start(scale: DataScale, current: Mapping[str, float],
         out["mu_smax"] = max(first, mu_s)
     # stiffness split: K_eff = 1 / (1/K0 + 1/Kts)
     k_eff = scale.k_eff_N_per_m
-    ratio = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
     k0 = fixed.get("k0_N_per_m", math.nan)
     kts = fixed.get("kts_N_per_m", math.nan)
     if math.isfinite(k0) and not math.isfinite(kts):
@@ -223,8 +223,8 @@ def base_start(scale: DataScale, current: Mapping[str, float],
             kts = min(max(k_stick, 1.05 * k_eff), STIFF_CAP * k_eff)
             k0 = 1.0 / (1.0 / k_eff - 1.0 / kts)
         else:
-            k0 = k_eff * (1.0 + 1.0 / ratio)
-            kts = k0 * ratio
+            k0 = k_eff * (1.0 + 1.0 / PRESET_KTS_RATIO)
+            kts = k0 * PRESET_KTS_RATIO
     out["k0_N_per_m"], out["kts_N_per_m"] = k0, kts
     if "kt0_N_per_m" in current:
         out["kt0_N_per_m"] = kts * PRESET_KT0_N_PER_M / PRESET["kts_N_per_m"]

@@ -223,12 +223,12 @@ class Objective:
                 self._seen_valid = True
                 self.failed_norm = max(FAILED_RESIDUAL,
                                        FAILED_FACTOR * float(np.linalg.norm(vec)))
-        except TimeLimitError:
+        except TimeLimitError:  # past its time limit: the failure penalty, counted apart
             vec = None
             self._timed_out.add(key)
         except SimulationError:
             # not physically valid, or cannot be run (e.g. slips far more often than the record
-            # can show: evaluate.slip_budget; or past its time limit): the failure penalty
+            # can show: evaluate.slip_budget): the failure penalty
             vec = None
         if vec is None:
             n = self._length()

@@ -281,6 +281,11 @@ class SearchState:
         self.start_points: list[tuple[FloatArray, FloatArray]] = []
         """The starts that can be run, and their residual vectors."""
 
+    def _stopped_on_budget(self) -> None:
+        """A stage stops because the budget left would not pay for its next step: where the
+        wall limit is what limits it, the search ends on its time (:attr:`time_limited`)."""
+        self.time_limited |= self.budget.time_binds()
+
     # -- evaluation ---------------------------------------------------------------------------
 
     def evaluate(self, xs: list[FloatArray]) -> list[Outcome]:
@@ -496,7 +501,7 @@ class SearchState:
             return
         if self.budget.evaluations_left() - self.reserve() < \
                 FD_TRIES * len(self.cols) + popsize(self.space.dim) // 2:
-            self.time_limited |= self.budget.time_binds()
+            self._stopped_on_budget()
             return
         used = self.budget.used
         x0, r0 = at
@@ -551,7 +556,7 @@ class SearchState:
         while True:
             if self.budget.evaluations_left() - self.reserve() < lam:
                 self.stop_reason = "budget"
-                self.time_limited |= self.budget.time_binds()
+                self._stopped_on_budget()
                 break
             ys = es.ask()
             xs = [m + L @ y for y in ys]
@@ -642,7 +647,7 @@ class SearchState:
             left = self.budget.evaluations_left() - 1 - \
                 (self.jacobian_cost() if self.with_uncertainty else 0)
             if left < self.jacobian_cost() + 1:
-                self.time_limited |= self.budget.time_binds()
+                self._stopped_on_budget()
                 raise _ConvergedError("the budget would not pay another Jacobian")
             last.append(cost)
             current[:] = z

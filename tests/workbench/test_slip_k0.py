@@ -13,7 +13,13 @@ import pytest
 
 from rigctl.records.dataset import prepare_dataset
 from rigctl.records.features import EventTable
-from rigctl.workbench.data_scale import PRESET, base_start, measure_scale, slip_k0
+from rigctl.workbench.data_scale import (
+    PRESET,
+    PRESET_KTS_RATIO,
+    base_start,
+    measure_scale,
+    slip_k0,
+)
 from tests.workbench.synth import LIGHT_RIG, light_rig_tlre
 
 K0 = LIGHT_RIG["k0_N_per_m"]
@@ -45,8 +51,7 @@ def test_without_a_ramp_the_start_takes_k0_from_the_slips(tables):
     assert scale.usable
     start = base_start(scale, dict(PRESET))
     assert start["k0_N_per_m"] == pytest.approx(K0, rel=0.02)
-    ratio = PRESET["kts_N_per_m"] / PRESET["k0_N_per_m"]
-    assert start["kts_N_per_m"] == pytest.approx(ratio * start["k0_N_per_m"])
+    assert start["kts_N_per_m"] == pytest.approx(PRESET_KTS_RATIO * start["k0_N_per_m"])
 
 
 def test_without_a_ramp_or_delta_there_is_still_no_stiffness(tables):
