@@ -84,6 +84,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     dia.add_argument("--timeout", type=float, default=300.0, metavar="S",
                      help="time limit of one candidate fit in seconds (default 300); with "
                           "--auto a fit that reaches it ends with its best point so far")
+    dia.add_argument("--max-time", type=float, default=None, metavar="S",
+                     help="--auto: time limit of the whole run in seconds (default 540; 0: none); "
+                          "each fit gets its share of the time left, and at the limit the run "
+                          "ends with the model it has and says so")
     dia.set_defaults(func=run_diagnose)
 
 
@@ -214,6 +218,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         raise UsageError("--workers must be at least 1")
     if not args.timeout > 0:
         raise UsageError("--timeout must be positive")
+    max_run_s = _max_time(args)
     choice = _choice(args)
     candidates = _names(args.candidates) or candidate_effects(choice)
     known = registry_for(choice.effect_files)
@@ -240,7 +245,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     try:
         diag = diagnose(dataset, choice, candidates=candidates, auto=args.auto,
                         workers=args.workers, scheduler=client, progress=progress,
-                        timeout_s=args.timeout)
+                        timeout_s=args.timeout, max_run_s=max_run_s)
     finally:
         if client is not None:
             client.close()
@@ -259,6 +264,21 @@ def run_diagnose(args: argparse.Namespace) -> int:
         return 0
     _print_diagnosis(diag, args.auto)
     return 0
+
+
+def _max_time(args: argparse.Namespace) -> float | None:
+    """``--max-time``: the --auto run's limit in seconds (None: none)."""
+    from rigctl.workbench.run_deadline import DEFAULT_RUN_S
+
+    if args.max_time is None:
+        return DEFAULT_RUN_S
+    if not args.auto:
+        raise UsageError("--max-time limits an --auto run; without --auto each candidate fit "
+                         "has --timeout")
+    if not (math.isfinite(args.max_time) and args.max_time >= 0):
+        raise UsageError(f"--max-time must be 0 (no limit) or a positive number of seconds, "
+                         f"not {args.max_time}")
+    return args.max_time or None
 
 
 def _print_diagnosis(diag: Any, auto: bool) -> None:
@@ -306,6 +326,8 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
             print(f"  to tell them apart: {last.suggest}")
             for run in last.runs:
                 print(f"    {run['command']}    (reveals {run['reveals']})")
+        elif diag.time_limited:
+            print(f"  stopped: {diag.time_limited} (--max-time)")
         else:
             print("  stopped: " + ("nothing significant left" if last.kind is VerdictKind.NONE
                                    else "step limit reached"))

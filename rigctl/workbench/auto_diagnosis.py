@@ -33,6 +33,7 @@ from rigctl.workbench.ranking import (
     unexplained_text,
 )
 from rigctl.workbench.residual_map import ResidualMap, discrepancies, residual_map
+from rigctl.workbench.run_deadline import DEFAULT_RUN_S
 from rigctl.workbench.selection import Round as SelectionRound
 from rigctl.workbench.selection import Selection, Step, Trial, added_parameters
 
@@ -44,20 +45,21 @@ def diagnose_auto(
     dataset: Dataset, choice: ModelChoice, *, candidates: Sequence[str] | None = None,
     workers: int | None = None, progress: Say | None = None, baseline: FitResult | None = None,
     on_fit: FitListener | None = None, cancel: Event | None = None,
-    fit_wall_s: float | None = DEFAULT_TIMEOUT_S,
+    fit_wall_s: float | None = DEFAULT_TIMEOUT_S, max_run_s: float | None = DEFAULT_RUN_S,
 ) -> Diagnosis:
     """``choice``'s effects chosen on ``dataset`` (module docstring). ``baseline``: the model
     already identified; ``on_fit``: each fully fitted set's fit, as the rounds end; ``cancel``:
     an event that ends the run (:class:`~rigctl.workbench.budget.SearchCancelledError`);
     ``fit_wall_s``: each fit's time limit after the model's own (``--timeout``, None: none;
-    :func:`~rigctl.workbench.auto.auto_select`)."""
+    :func:`~rigctl.workbench.auto.auto_select`); ``max_run_s``: the whole run's (``--max-time``,
+    :class:`~rigctl.workbench.run_deadline.RunDeadline`; None: none)."""
     say = progress or (lambda _m: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
         f"{len(pool)} candidate effects ...")
     with signals_raise():  # Ctrl-C and SIGTERM end the run: every pool terminated
         sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
-                          cancel=cancel, say=say, fit_wall_s=fit_wall_s)
+                          cancel=cancel, say=say, fit_wall_s=fit_wall_s, max_run_s=max_run_s)
     if on_fit is not None:
         for rnd in sel.rounds:
             for t in rnd.trials:
@@ -67,7 +69,8 @@ def diagnose_auto(
 
 def as_diagnosis(dataset: Dataset, sel: Selection) -> Diagnosis:
     """The selection's rounds and steps as a :class:`Diagnosis` (module docstring)."""
-    diag = Diagnosis(dataset, [], protocols=protocols_present(dataset))
+    diag = Diagnosis(dataset, [], protocols=protocols_present(dataset),
+                     time_limited=sel.time_limited)
     diag.steps.append(DiagnosisStep(0, sel.base.choice.label(), None, sel.base.error, None))
     for step in sel.steps:
         _tell_step(diag, step, sel)

@@ -56,6 +56,7 @@ from rigctl.workbench.residual_map import (
     significant_trends,
 )
 from rigctl.workbench.round_eta import RoundClock
+from rigctl.workbench.run_deadline import DEFAULT_RUN_S
 
 MAX_BASE_RESTARTS = 2
 """Times a round is run again from a better fit of its own model (:func:`better_model`)."""
@@ -98,6 +99,9 @@ class Diagnosis:
     rounds: list[Round]
     steps: list[DiagnosisStep] = field(default_factory=list)
     protocols: list[str] = field(default_factory=list)
+    time_limited: str = ""
+    """``--auto``: where the run's time limit (``--max-time``) ended it (empty: it ran to its
+    end)."""
 
     @property
     def first(self) -> Round:
@@ -133,6 +137,7 @@ class Diagnosis:
             out["final_candidates"] = last.candidates
             out["final_suggest"] = last.suggest
             out["final_suggest_runs"] = last.runs
+            out["time_limited"] = self.time_limited
         return out
 
 
@@ -338,12 +343,13 @@ def diagnose(
     timeout_s: float = DEFAULT_TIMEOUT_S,
     in_process: bool = False,
     on_fit: FitListener | None = None,
+    max_run_s: float | None = DEFAULT_RUN_S,
 ) -> Diagnosis:
     """Rank candidate effects for ``choice`` on ``dataset`` (see the module docstring);
     ``on_fit``: each candidate's fit as it arrives (:func:`run_round`). With ``auto``, forward
     selection over the one search (:func:`rigctl.workbench.auto_diagnosis.diagnose_auto`), on
     this machine's worker processes (``scheduler`` is refused: the search's evaluation pool is
-    local)."""
+    local), within ``max_run_s`` wall seconds (None: no limit)."""
     if auto:
         if scheduler is not None:
             raise ValueError("--auto runs its searches on this machine's worker processes; "
@@ -353,7 +359,8 @@ def diagnose(
 
         return diagnose_auto(dataset, choice, candidates=candidates,
                              workers=0 if in_process else workers, progress=progress,
-                             baseline=baseline, on_fit=on_fit, fit_wall_s=timeout_s)
+                             baseline=baseline, on_fit=on_fit, fit_wall_s=timeout_s,
+                             max_run_s=max_run_s)
     say = progress or (lambda _msg: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
     say(f"identifying {choice.label()} on {dataset.n_events} slip events ...")

@@ -60,6 +60,7 @@ from typing import Protocol
 from scipy.stats import chi2
 
 from rigctl.records.dataset import Dataset
+from rigctl.workbench.budget import SearchCancelledError
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import (
     ModelChoice,
@@ -69,15 +70,19 @@ from rigctl.workbench.model_choice import (
 )
 from rigctl.workbench.ranking import INDISTINGUISHABLE_DELTA_BIC, CandidateScore, score_candidate
 from rigctl.workbench.round_eta import RoundClock
+from rigctl.workbench.run_deadline import RunDeadline
 from rigctl.workbench.screening import Screened
 
 
 class FitFn(Protocol):
     """Identify one model on a dataset: its current values are the search's start, ``starts``
-    the same model at other values (a screen's best point) are more."""
+    the same model at other values (a screen's best point) are more; ``max_wall_s``: the fit's
+    share of the run's time (:class:`~rigctl.workbench.run_deadline.RunDeadline`), None: no
+    share."""
 
     def __call__(self, dataset: Dataset, choice: ModelChoice, /, *,
-                 starts: Sequence[ModelChoice] = ()) -> FitResult: ...
+                 starts: Sequence[ModelChoice] = (),
+                 max_wall_s: float | None = None) -> FitResult: ...
 
 
 ScreenFn = Callable[[Dataset, FitResult, Sequence[tuple[str, ...]]], list[Screened]]
@@ -163,6 +168,8 @@ class Selection:
     final: FitResult
     steps: list[Step] = field(default_factory=list)
     rounds: list[Round] = field(default_factory=list)
+    time_limited: str = ""
+    """Where the run's time limit ended the selection (empty: it ran to its end)."""
 
 
 def _score(name: str, base: FitResult, cand: FitResult, n_events: int) -> CandidateScore:
@@ -245,10 +252,11 @@ def added_parameters(model: FitResult, s: Screened) -> int:
 
 def forward_step(
     dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
-    say: Say,
+    say: Say, deadline: RunDeadline | None = None,
 ) -> tuple[Trial | None, list[Trial], list[Screened]]:
     """One forward step from ``model``: the set to add (None: nothing significant), the trials
-    (none where the :func:`gate` passes no screened set) and every screen."""
+    (none where the :func:`gate` passes no screened set) and every screen. With ``deadline``,
+    each fit gets its share of the run's time left (:meth:`RunDeadline.share_s`)."""
     n = dataset.n_events
     singles = screen(dataset, model, [(c,) for c in pool])
     pair_sets = [tuple(sorted((a.effects[0], b.effects[0])))
@@ -269,7 +277,8 @@ def forward_step(
             say(f"  {name}: its screened error is not significant, its score "
                 f"is ({s.score:.3g}, {s.score_df} coordinates): fitted fully")
         res = fit(dataset, with_effects(model.choice, s.effects),
-                  starts=() if s.start is None else (s.start,))
+                  starts=() if s.start is None else (s.start,),
+                  max_wall_s=_share(deadline, len(kept) - i))
         took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
         say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
         trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
@@ -296,16 +305,23 @@ def contenders(chosen: Trial, trials: Sequence[Trial]) -> tuple[Trial, ...]:
 
 def backward_elimination(
     dataset: Dataset, model: FitResult, *, fit: FitFn, protected: Sequence[str], say: Say,
+    deadline: RunDeadline | None = None,
 ) -> tuple[FitResult, list[Step]]:
     """Remove, weakest first, every effect of ``model`` (but ``protected``, the user's) whose
-    removal is not significantly worse."""
+    removal is not significantly worse (each fit at its share of ``deadline``'s time left)."""
     steps: list[Step] = []
     while True:
         outs: list[tuple[str, FitResult, CandidateScore]] = []
         removable = [e for e in model.choice.effects if e not in protected]
         clock = RoundClock([1.0] * len(removable))
         for i, effect in enumerate(removable):
-            rest = fit(dataset, without_effect(model.choice, effect))
+            try:
+                rest = fit(dataset, without_effect(model.choice, effect),
+                           max_wall_s=_share(deadline, len(removable) - i))
+            except SearchCancelledError:
+                if not _time_is_up(deadline):
+                    raise
+                return model, steps  # the removals so far stand; the caller says the rest
             outs.append((effect, rest, _score(effect, rest, model, dataset.n_events)))
             say(f"  without {effect}: {rest.error:.3g} (with it {model.error:.3g}) "
                 f"{clock.finished(i)}")
@@ -347,27 +363,72 @@ def unfinished_model(
     return best[1] if sc.significant else None
 
 
+def _share(deadline: RunDeadline | None, fits_left: int) -> float | None:
+    return None if deadline is None else deadline.share_s(fits_left)
+
+
+def _time_is_up(deadline: RunDeadline | None) -> bool:
+    """Whether a cancelled search was stopped by the run's time limit (not by the user)."""
+    return deadline is not None and not deadline.user_cancelled and \
+        (deadline.cancel.is_set() or deadline.passed())
+
+
 def select_effects(
     dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
     max_steps: int = MAX_STEPS, say: Say = lambda _m: None, error_of: ErrorFn | None = None,
+    deadline: RunDeadline | None = None,
 ) -> Selection:
     """Forward selection from ``base`` over ``pool``, then backward elimination (module docstring).
     Effects ``base`` already has are the user's and are never removed. With ``error_of``, a step
     whose trials show the model's own fit unfinished (:func:`unfinished_model`) refits the model
-    from there (a ``refit`` step) and is repeated."""
+    from there (a ``refit`` step) and is repeated.
+
+    With ``deadline`` (the run's time limit; its :attr:`~RunDeadline.cancel` is the event every
+    ``fit`` and ``screen`` watches), each fit gets its share of the time left, and where the limit
+    ends a step, the steps taken so far stand: the step it ended adds nothing, backward elimination
+    is skipped (or ends where it was), and :attr:`Selection.time_limited` says where."""
     sel = Selection(base, base)
-    model, pool = base, list(pool)
+    try:
+        model = _forward(dataset, sel, pool, fit=fit, screen=screen, max_steps=max_steps,
+                         say=say, error_of=error_of, deadline=deadline)
+    except SearchCancelledError:
+        if not _time_is_up(deadline):
+            raise
+        model = sel.steps[-1].model if sel.steps else base
+        sel.time_limited = (f"the run's time limit ended forward step {len(sel.rounds) + 1} "
+                            "before it was judged; backward elimination was not run")
+        say(f"time limit: {sel.time_limited}; the model so far is {model.choice.label()}")
+        sel.final = model
+        return sel
+    model, removals = backward_elimination(dataset, model, fit=fit,
+                                           protected=base.choice.effects, say=say,
+                                           deadline=deadline)
+    if _time_is_up(deadline):
+        sel.time_limited = "the run's time limit ended backward elimination before its end"
+        say(f"time limit: {sel.time_limited}")
+    sel.steps += removals
+    sel.final = model
+    return sel
+
+
+def _forward(
+    dataset: Dataset, sel: Selection, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
+    max_steps: int, say: Say, error_of: ErrorFn | None, deadline: RunDeadline | None,
+) -> FitResult:
+    """Forward selection into ``sel`` (its rounds and steps as they happen): the model it ends
+    at."""
+    model, pool = sel.base, list(pool)
     steps = 0
     while steps < max_steps:
         if not pool:
             break
         chosen, trials, screens = forward_step(dataset, model, pool, fit=fit, screen=screen,
-                                               say=say)
+                                               say=say, deadline=deadline)
         undecided = contenders(chosen, trials) if chosen is not None else ()
         again = None if error_of is None else unfinished_model(dataset, model, trials,
                                                                 error_of=error_of)
         if again is not None:
-            refit = fit(dataset, again)
+            refit = fit(dataset, again, max_wall_s=_share(deadline, 1))
             if refit.error < model.error:
                 sel.rounds.append(Round(model, screens, trials, None))
                 say(f"{model.choice.label()} fits better from a trial's values without its "
@@ -390,8 +451,4 @@ def select_effects(
                               chosen.score.delta_bic, chosen.fit))
         model = chosen.fit
         pool = [c for c in pool if c not in chosen.effects]
-    model, removals = backward_elimination(dataset, model, fit=fit,
-                                           protected=base.choice.effects, say=say)
-    sel.steps += removals
-    sel.final = model
-    return sel
+    return model

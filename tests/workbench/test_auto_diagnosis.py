@@ -222,3 +222,46 @@ def test_diagnose_hands_its_timeout_to_auto_as_each_fit_s_limit(monkeypatch):
     monkeypatch.setattr(ad, "diagnose_auto", fake)
     assert dg.diagnose(DATASET, ModelChoice("paper"), auto=True, timeout_s=42.0) == "diagnosis"
     assert got["fit_wall_s"] == 42.0
+
+
+def test_each_fit_s_limit_is_its_share_of_the_run_where_that_is_less(monkeypatch):
+    from rigctl.workbench import auto
+
+    base = fit((), 10.0)
+    limits: list[Any] = []
+
+    def search(dataset: Any, choice: ModelChoice, **kw: Any) -> FitResult:
+        limits.append(kw.get("max_wall_s"))
+        return replace(fit(choice.effects, 4.0 if choice.effects == ("a",) else 10.0),
+                       time_limited=True)
+
+    def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:
+        return sorted((screened(s, 5.0 if s == ("a",) else 9.9) for s in sets),
+                      key=lambda s: s.error)
+
+    _patch_auto(monkeypatch, search, screen)
+    said: list[str] = []
+    out = auto.auto_select(DATASET, base, pool=["a", "b"], say=said.append, fit_wall_s=300.0,
+                           max_run_s=100.0)
+    assert out.final.choice.effects == ("a",) and out.time_limited == ""
+    # one fit in the step: half the time left; never the 300 s of --timeout
+    assert limits and all(x is not None and 0 < x <= 50.0 for x in limits)
+    assert any("its share of the run's --max-time" in m for m in said)
+
+
+def test_the_time_limit_of_the_selection_reaches_the_diagnosis_and_its_json():
+    base = fit((), 10.0)
+    s = sel.Selection(base, base, time_limited="the run's time limit ended forward step 1")
+    diag = ad.as_diagnosis(DATASET, s)
+    assert diag.time_limited == s.time_limited
+    assert diag.to_json(True)["time_limited"] == s.time_limited
+
+
+def test_diagnose_runs_auto_within_the_default_run_limit(monkeypatch):
+    from rigctl.workbench import diagnose as dg
+    from rigctl.workbench.run_deadline import DEFAULT_RUN_S
+
+    got: dict[str, Any] = {}
+    monkeypatch.setattr(ad, "diagnose_auto", lambda *a, **kw: got.update(kw))
+    dg.diagnose(DATASET, ModelChoice("paper"), auto=True)
+    assert got["max_run_s"] == DEFAULT_RUN_S

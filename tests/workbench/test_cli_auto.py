@@ -216,3 +216,27 @@ def test_plain_tcp_to_another_host_is_warned_about(capsys):
     args.scheduler = "tcp://127.0.0.1:8786"
     assert scheduler_security(args) is None
     assert capsys.readouterr().err == ""
+
+
+def test_max_time_ends_the_run_with_the_model_it_has_and_says_so(two_effects, capsys):
+    import time
+
+    t0 = time.monotonic()
+    code = main(["model", "diagnose", str(two_effects), "--auto", "--candidates", CANDIDATES,
+                 "--workers", "1", "--max-time", "4", "--json"])
+    took = time.monotonic() - t0
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["time_limited"].startswith("the run's time limit ended")
+    assert out["final_model"].startswith("paper")
+    assert took < 60.0  # the limit, one evaluation and the report; not a full run
+
+
+@pytest.mark.parametrize(("extra", "says"), [
+    (["--max-time", "30"], "--max-time limits an --auto run"),
+    (["--auto", "--max-time", "-1"], "--max-time must be 0"),
+    (["--auto", "--max-time", "nan"], "--max-time must be 0"),
+])
+def test_max_time_is_checked_before_any_fit(two_effects, capsys, extra, says):
+    code = main(["model", "diagnose", str(two_effects), "--candidates", "wear", *extra])
+    assert code == 2 and says in capsys.readouterr().err

@@ -35,6 +35,8 @@ class Table:
         self.screened: list[frozenset[str]] = []
         self.starts: dict[frozenset[str], tuple[ModelChoice, ...]] = {}
         """The extra starts each full fit was given."""
+        self.walls: list[float | None] = []
+        """Each full fit's share of the run's time (``max_wall_s``)."""
 
     def _result(self, choice: ModelChoice, error: float) -> FitResult:
         free = ("mu_s", "mu_k", *(f"{e}.p" for e in choice.effects))
@@ -42,10 +44,11 @@ class Table:
             choice = choice.with_values({"warm": 1.0})
         return FitResult(choice, error, {}, free)
 
-    def fit(self, _ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()
-            ) -> FitResult:
+    def fit(self, _ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = (),
+            max_wall_s: float | None = None) -> FitResult:
         key = frozenset(choice.effects)
         self.fitted.append(key)
+        self.walls.append(max_wall_s)
         self.starts[key] = tuple(starts)
         if "warm" in choice.values and key in self.warm_errors:
             return self._result(choice, self.warm_errors[key])
@@ -182,12 +185,12 @@ class Unfinished(Table):
             res = FitResult(res.choice.with_values({"at_trial": 1.0}), res.error, {}, res.free)
         return res
 
-    def fit(self, ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()
-            ) -> FitResult:
+    def fit(self, ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = (),
+            max_wall_s: float | None = None) -> FitResult:
         if not choice.effects and "at_trial" in choice.values:  # the base refitted from there
             self.fitted.append(frozenset())
             return FitResult(choice, self.finished, {}, ("mu_s", "mu_k"))
-        return super().fit(ds, choice, starts=starts)
+        return super().fit(ds, choice, starts=starts, max_wall_s=max_wall_s)
 
     def error_of(self, _ds: Any, choice: ModelChoice) -> float:
         self.evaluated.append(choice)
@@ -322,8 +325,9 @@ def test_each_full_fit_says_how_long_it_took():
     t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0})
     base = t.fit(DATASET, ModelChoice("paper"))
 
-    def timed(ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = ()) -> FitResult:
-        res = t.fit(ds, choice, starts=starts)
+    def timed(ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = (),
+              max_wall_s: float | None = None) -> FitResult:
+        res = t.fit(ds, choice, starts=starts, max_wall_s=max_wall_s)
         return FitResult(res.choice, res.error, {}, res.free, elapsed_s=42.4)
 
     said: list[str] = []
