@@ -223,6 +223,7 @@ def run_case(i: int, seed: int, workers: int, verbose: bool = False,
             "removed": removed, "baseline_error": base_err, "final_error": final_err,
             "hit": hit, "wall_s": wall, "n_events": ds.n_events, "truth_error": truth_err,
             "unexplained": diag.rounds[-1].verdict.unexplained,
+            "run_time_limited": diag.time_limited,
             "rig": drawn["rig"], "protocols": drawn["protocols"]}
 
 

@@ -89,6 +89,10 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
             + (f" Stopped at the case time limit (no answer, a miss): {stopped}." if stopped
                else ""),
         ]
+        limited = sum(bool(c.get("run_time_limited")) for c in cases)
+        if limited:
+            lines.append(f"- Ended by the run's own time limit (`--max-time`; the model it had "
+                         f"is the answer, judged like any other): {limited}.")
         by_hidden: dict[int, list[str]] = {}
         for c, k in zip(cases, kinds, strict=True):
             by_hidden.setdefault(len(c["hidden"]), []).append(k)
@@ -105,6 +109,8 @@ def table(cases: Sequence[dict[str, Any]], title: str) -> str:
     for c, k in zip(cases, kinds, strict=True):
         shown = k if k != "indistinguishable" else \
             f"indistinguishable ({' / '.join(c.get('undecided_between', []))})"
+        if c.get("run_time_limited"):
+            shown += " (run time limit)"
         lines.append(f"| {c['case']} | {_names(c['hidden'])} | {_names(c['final'])} | {shown} | "
                      f"{_err(c.get('baseline_error'))} | {_err(c.get('final_error'))} | "
                      f"{_err(c.get('truth_error'))} | {float(c['wall_s']):.0f} |")

@@ -76,3 +76,16 @@ def test_the_page_gives_the_run_s_peak_memory_where_recorded(tmp_path):
     older = tmp_path / "o.jsonl"
     older.write_text(json.dumps(lines[2]) + "\n")
     assert "Peak resident memory" not in table(load([str(older)]), "Seed 9")
+
+
+def test_a_case_ended_by_the_run_s_own_limit_is_an_answer_and_is_marked(tmp_path):
+    lines = [_case(0, ["a"], ["a"], "hit", 540.0, run_time_limited="ended forward step 2"),
+             _case(1, [], [], "hit", 60.0, run_time_limited="")]
+    path = tmp_path / "r.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    page = table(load([str(path)]), "Seed 9")
+    assert "**Hits: 2 of 2**" in page
+    assert "Ended by the run's own time limit (`--max-time`; the model it had is the answer, " \
+           "judged like any other): 1." in page
+    assert "| 0 | a | a | hit (run time limit) |" in page
+    assert "| 1 | - | - | hit |" in page
