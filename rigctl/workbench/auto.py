@@ -92,6 +92,9 @@ def _auto_select(
         max_wall_s=deadline.share_s(1))
     say(f"{base.choice.label()}: E {base.error:.3g}")
     _say_timed_out(base, say)
+    if base.time_limited:
+        say(f"  {base.choice.label()}: its fit reached half the run's time limit (--max-time); "
+            "its best point so far is the model every step is judged against")
     fns = fn_range(dataset)
     candidates = candidate_effects(base.choice) if pool is None else list(pool)
     return select_effects(dataset, base, candidates, fit=fit, screen=screen, say=say,

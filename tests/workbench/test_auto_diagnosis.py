@@ -265,3 +265,24 @@ def test_diagnose_runs_auto_within_the_default_run_limit(monkeypatch):
     monkeypatch.setattr(ad, "diagnose_auto", lambda *a, **kw: got.update(kw))
     dg.diagnose(DATASET, ModelChoice("paper"), auto=True)
     assert got["max_run_s"] == DEFAULT_RUN_S
+
+
+def test_the_model_s_own_fit_gets_at_most_half_the_run_and_says_when_it_ended_it(monkeypatch):
+    from rigctl.workbench import auto
+
+    limits: list[Any] = []
+
+    def search(dataset: Any, choice: ModelChoice, **kw: Any) -> FitResult:
+        limits.append(kw.get("max_wall_s"))
+        return replace(fit(choice.effects, 10.0), time_limited=not choice.effects)
+
+    def screen(dataset: Any, model: FitResult, sets: Any, **kw: Any) -> list[Screened]:
+        return [screened(s, 9.99) for s in sets]
+
+    _patch_auto(monkeypatch, search, screen)
+    said: list[str] = []
+    out = auto.auto_select(DATASET, ModelChoice("paper"), pool=["a"], say=said.append,
+                           max_run_s=100.0)
+    assert limits[0] is not None and 49.0 < limits[0] <= 50.0
+    assert any("its fit reached half the run's time limit" in m for m in said)
+    assert out.final is out.base
