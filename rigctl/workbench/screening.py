@@ -29,12 +29,18 @@ re-fitted *linearly*, from a handful of evaluations of the model with the set ad
    SearchSpace`, the same ranges a full fit spreads its starts over), the base at the model's
    values, each evaluated and profiled over the base.
 
-A set's screened error is the lowest profiled cost over its points (the model itself included:
-a set that helps nowhere screens at the model's error), as an error E (|r|^2 = n E^2, n fixed by
-the model's own pair). Every screened cost is that of an evaluated residual; only the base's
-re-fit is linear. Costs: 2 + SPREAD_POINTS + about 1-3 evaluations per on-coordinate + 1 per set,
-against a short search's tens. The point where it was found, with the base moved by the damped
-Gauss-Newton step the profile assumes, is the set's start for its full fit (:attr:`Screened.start`).
+A set's screened error is the model's error scaled by the lowest profiled cost over its points
+*relative to the profiled cost of the off point* (the model itself, its base re-fitted linearly):
+E_set = E_model sqrt(min cost / cost_off), so a set that helps nowhere screens at the model's
+error. The off point's own linear re-fit is no gain of the set: the model has it without any
+effect, and where the model's fit is at its least-squares minimum it is zero (J_b^T r_0 = 0).
+Where it is not (a fit ended by its budget, a residual rough at a finite difference's scale), the
+linear re-fit predicts a gain at every point alike, which the full fits then do not find; counted
+as the set's gain it would make every set look significant. Every screened cost is that of an
+evaluated residual; only the base's re-fit is linear. Costs: 2 + SPREAD_POINTS + about 1-3
+evaluations per on-coordinate + 1 per set, against a short search's tens. The point where it
+was found, with the base moved by the damped Gauss-Newton step the profile assumes, is the set's
+start for its full fit (:attr:`Screened.start`).
 """
 
 from __future__ import annotations
@@ -81,7 +87,8 @@ class Screened:
 
     effects: tuple[str, ...]
     error: float
-    """The lowest error over the set's points, the base re-fitted linearly (module docstring)."""
+    """The model's error scaled by the set's lowest profiled cost over the off point's: what the
+    set adds to the linear re-fit of the base (module docstring)."""
     score: float
     """The score statistic: the first-order gain of the Gauss-Newton step over the set's
     on-coordinates at off, in squared scatter units (0 where it has none)."""
@@ -114,6 +121,14 @@ def profiled_cost(r: FloatArray, Q: FloatArray) -> float:
     """|r - Q Q^T r|^2: the cost of residual ``r`` after a Gauss-Newton step over the base."""
     rp = r - Q @ (Q.T @ r)
     return float(rp @ rp)
+
+
+def screened_error(model_error: float, cost: float, cost_off: float, cost_model: float) -> float:
+    """A set's screened error: ``model_error`` scaled by the square root of its lowest profiled
+    ``cost`` over the off point's profiled cost ``cost_off`` (module docstring; ``cost_model``,
+    the model's own |r_0|^2, where the off point's profile removes everything)."""
+    ref = cost_off if cost_off > 0.0 else cost_model
+    return model_error * math.sqrt(cost / ref) if ref > 0.0 else model_error
 
 
 @dataclass(frozen=True)
@@ -209,8 +224,7 @@ class _SetScreen:
                 if o.status == OK and o.vector is not None:
                     found.append((profiled_cost(o.vector, Q), "score step", x, o.vector))
         cost, where, x_at, r_at = min(found, key=lambda f: f[0])
-        n0 = float(r0 @ r0)
-        error = self.model.error * math.sqrt(cost / n0) if n0 > 0.0 else self.model.error
+        error = screened_error(self.model.error, cost, found[0][0], float(r0 @ r0))
         start = None if where == "off" else self._start(x_at, r_at, metric)
         out = Screened(self.effects, error, score, self.budget.used - used, where, start,
                        len(self.on))

@@ -207,8 +207,9 @@ def promising(model: FitResult, s: Screened, n_events: int) -> bool:
     """Whether the screened set ``s`` is significant against ``model`` by the rule a fit is
     judged by.
 
-    A set's screened error is that of a point the screen evaluated (its base re-fitted linearly),
-    and the set's full fit starts there: it is about what the fit reaches at worst. A set that does
+    A set's screened error is what a point the screen evaluated adds to the model's own linear
+    re-fit (:func:`~rigctl.workbench.screening.screened_error`), and the set's full fit starts
+    there: it is about what the fit reaches at worst. A set that does
     not screen significant would need its full fit to find a gain none of the screen's points
     shows (an effect whose gain lies outside its plausible ranges, or that needs the base to move
     far from the model): that is the screen's miss, and such a set is not fitted."""

@@ -17,7 +17,7 @@ from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
 from rigctl.workbench.fitting import error_or_inf
 from rigctl.workbench.identify import FitResult, fn_range, physically_valid
 from rigctl.workbench.model_choice import ModelChoice, with_effects
-from rigctl.workbench.screening import base_basis, profiled_cost, score_screen
+from rigctl.workbench.screening import base_basis, profiled_cost, score_screen, screened_error
 from rigctl.workbench.search import search_model
 from tests.workbench.hidden import DECOYS, MAGNITUDE, TEST_BASE, scaled_values
 
@@ -39,6 +39,19 @@ def test_the_profile_removes_what_the_base_explains_and_keeps_the_rest():
     outside -= Q @ (Q.T @ outside)
     assert profiled_cost(outside + inside, Q) == pytest.approx(float(outside @ outside))
     assert base_basis(np.zeros((5, 2))).shape == (5, 0)
+
+
+def test_a_set_is_credited_only_with_what_it_adds_to_the_base_s_own_linear_re_fit():
+    # the model's |r0|^2 = 100; its base re-fitted linearly predicts 64 (an unfinished fit or a
+    # rough residual): a set whose best point is the off point, or a point at the same profiled
+    # cost, gains nothing; one at 16 halves the error of the re-fitted base
+    assert screened_error(5.0, 64.0, 64.0, 100.0) == pytest.approx(5.0)
+    assert screened_error(5.0, 16.0, 64.0, 100.0) == pytest.approx(2.5)
+    # a model at its least-squares minimum: the off point's profile removes nothing
+    assert screened_error(5.0, 25.0, 100.0, 100.0) == pytest.approx(2.5)
+    # a profile that removes everything at off falls back to the model's own cost
+    assert screened_error(5.0, 0.0, 0.0, 100.0) == 0.0
+    assert screened_error(5.0, 0.0, 0.0, 0.0) == 5.0
 
 
 def _dataset(hidden: str) -> Dataset:
