@@ -85,7 +85,7 @@ def _auto_select(
     def screen(ds: Dataset, fitted: FitResult, sets: Sequence[tuple[str, ...]]
                ) -> list[Screened]:
         return score_screen(ds, fitted, sets, workers=workers, say=say,
-                            budget=None if cancel is None else Budget(cancel_event=cancel))
+                            budget=Budget(cancel_event=cancel))
 
     base = model if isinstance(model, FitResult) else search_model(
         dataset, model, workers=workers, with_uncertainty=False, cancel=cancel,

@@ -74,6 +74,11 @@ class RunDeadline:
         """Whether the user (not the limit) cancelled the run."""
         return self.user_cancel is not None and self.user_cancel.is_set()
 
+    def expired(self) -> bool:
+        """Whether the limit, not the user, ends the run (what a cancelled search was stopped
+        by)."""
+        return self.passed() and not self.user_cancelled
+
     def _watch(self) -> None:
         while not self._done.wait(WATCH_PERIOD_S):
             if self.user_cancelled or self.passed():

@@ -370,8 +370,7 @@ def _share(deadline: RunDeadline | None, fits_left: int) -> float | None:
 
 def _time_is_up(deadline: RunDeadline | None) -> bool:
     """Whether a cancelled search was stopped by the run's time limit (not by the user)."""
-    return deadline is not None and not deadline.user_cancelled and \
-        (deadline.cancel.is_set() or deadline.passed())
+    return deadline is not None and deadline.expired()
 
 
 def select_effects(

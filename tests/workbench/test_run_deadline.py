@@ -16,28 +16,21 @@ from rigctl.workbench.budget import SearchCancelledError
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.run_deadline import RunDeadline
+from tests.workbench.test_budget import FakeClock as Clock
 from tests.workbench.test_selection import DATASET, POOL, S, Table
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def __call__(self) -> float:
-        return self.t
 
 
 def test_a_fit_gets_the_time_left_over_the_fits_left_plus_one():
     clock = Clock()
     d = RunDeadline(600.0, clock=clock, watch=False)
     assert d.share_s(5) == pytest.approx(100.0)
-    clock.t = 300.0
+    clock.t += 300.0
     assert d.left_s() == pytest.approx(300.0)
     assert d.share_s(2) == pytest.approx(100.0)
     assert d.share_s(0) == pytest.approx(150.0)  # the last fit: half of what is left
     assert not d.passed()
-    clock.t = 601.0
-    assert d.left_s() == 0.0 and d.passed()
+    clock.t += 301.0
+    assert d.left_s() == 0.0 and d.passed() and d.expired()
 
 
 def test_without_a_limit_there_is_no_share_and_no_stop():
@@ -111,6 +104,7 @@ def test_the_limit_keeps_the_steps_taken_and_says_where_it_ended():
     # step 1 fits and adds "a" alone (10 -> 4; "b" screens too poorly alone to be paired), its
     # fit takes the clock past the limit; step 2 would add "b" (4 -> 1), but its fit is stopped
     clock = Clock()
+    clock.t = 0.0  # the fits' clock counts from the run's start
     errors = {S(): 10.0, S("a"): 4.0, S("c"): 9.5, S("d"): 9.5, S("e"): 9.5, S("a", "b"): 1.0}
     t = Expiring(errors, clock, deadline_s=50.0, cost_s=100.0)
     base = _base(t)
@@ -159,6 +153,7 @@ def test_the_watcher_stops_within_its_period():
 def test_a_limit_inside_backward_elimination_keeps_the_forward_steps():
     # step 1 adds "a"; step 2 has nothing significant; the refit without "a" is stopped
     clock = Clock()
+    clock.t = 0.0  # the fits' clock counts from the run's start
     t = Expiring({S(): 10.0, S("a"): 4.0, S("c"): 9.5, S("d"): 9.5, S("e"): 9.5}, clock,
                  deadline_s=50.0, cost_s=100.0)
     base = _base(t)
