@@ -37,7 +37,7 @@ from rigctl.model.effects import Effect
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.data_scale import NEAR_PRESET, scale_effect_values, scale_ratios
-from rigctl.workbench.fitting import campaign_scale
+from rigctl.workbench.data_start import campaign_scale
 from rigctl.workbench.identify import DYNAMIC_PARAMS, FreeParam, free_params
 from rigctl.workbench.model_choice import ModelChoice, effect_class, effect_of
 from rigctl.workbench.search_pool import Point

@@ -19,9 +19,9 @@ from rigctl.model.noise import NoiseModel
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import misses_most_slips
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
 
 pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
 
@@ -59,7 +59,7 @@ def test_the_preset_misses_most_slips_here(dataset):
 
 
 def test_the_fit_is_the_one_that_makes_the_slips(dataset):
-    res = identify_model(dataset, ModelChoice("paper"), with_uncertainty=False)
+    res = search_model(dataset, ModelChoice("paper"), with_uncertainty=False)
     assert not res.misses_most_slips
     # at the data's scale (this rig's preset: mu_s 0.15, K0 1.475e6 N/m)
     assert res.choice.values["mu_s"] == pytest.approx(RIG["mu_s"], rel=0.05)
