@@ -141,8 +141,12 @@ class _Maps:
 
 
 def _round(dataset: Dataset, rnd: SelectionRound, map_of: _Maps) -> Round:
-    """One forward step as a diagnosis round: the fitted sets ranked by their evidence, then the
-    sets only screened (never significant: a screen is no fit), the verdict the set added."""
+    """One forward step as a diagnosis round: the set chosen (or the sets the data cannot tell
+    apart) first, then the other fitted sets ranked by their evidence, then the sets only screened
+    (never significant: a screen is no fit); the verdict the set chosen. A pair holding the chosen
+    effect can show a lower delta BIC against the model than the effect alone while it is not
+    significant against it (module docstring of :mod:`~rigctl.workbench.selection`, 5): the
+    verdict's set leads the table so that the table and the verdict agree."""
     model, n = rnd.model, dataset.n_events
     base_map = map_of(model)
     fitted = [_trial_score(t, model, base_map, map_of) for t in rnd.trials]
@@ -156,7 +160,10 @@ def _round(dataset: Dataset, rnd: SelectionRound, map_of: _Maps) -> Round:
         sc.significant = False
         sc.explains = f"screened only ({s.best_at}; not fitted)"
         screened.append(sc)
-    ranking = sorted(fitted, key=lambda s: (not s.significant, s.delta_bic)) + screened
+    lead = [t.name for t in rnd.undecided] or ([rnd.chosen.name] if rnd.chosen else [])
+    ranking = sorted(fitted, key=lambda s: (s.effect not in lead,
+                                            lead.index(s.effect) if s.effect in lead else 0,
+                                            not s.significant, s.delta_bic)) + screened
     base_disc = discrepancies(base_map)
     if rnd.chosen is not None:
         v = Verdict(rnd.chosen.name, [], None)

@@ -253,11 +253,12 @@ def added_parameters(model: FitResult, s: Screened) -> int:
 
 def forward_step(
     dataset: Dataset, model: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
-    say: Say, deadline: RunDeadline | None = None,
+    say: Say, deadline: RunDeadline | None = None, error_of: ErrorFn | None = None,
 ) -> tuple[Trial | None, list[Trial], list[Screened]]:
     """One forward step from ``model``: the set to add (None: nothing significant), the trials
     (none where the :func:`gate` passes no screened set) and every screen. With ``deadline``,
-    each fit gets its share of the run's time left (:meth:`RunDeadline.share_s`)."""
+    each fit gets its share of the run's time left (:meth:`RunDeadline.share_s`); with
+    ``error_of``, each single is judged at the best point known for it (:func:`best_known`)."""
     n = dataset.n_events
     singles = screen(dataset, model, [(c,) for c in pool])
     pair_sets = [tuple(sorted((a.effects[0], b.effects[0])))
@@ -283,6 +284,8 @@ def forward_step(
         took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
         say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
         trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
+    if error_of is not None:
+        trials = best_known(dataset, model, trials, error_of=error_of, say=say)
     trials.sort(key=lambda t: _finite(t.fit.error))
     best_single = next((t for t in trials if len(t.effects) == 1 and t.score.significant), None)
     best_pair = next((t for t in trials if len(t.effects) == 2 and t.score.significant), None)
@@ -291,6 +294,44 @@ def forward_step(
         if _score(best_pair.name, against, best_pair.fit, n).significant:
             return best_pair, trials, screens
     return best_single, trials, screens
+
+
+def best_known(dataset: Dataset, model: FitResult, trials: Sequence[Trial], *,
+               error_of: ErrorFn, say: Say = lambda _m: None) -> list[Trial]:
+    """The trials with each single at the best point known for its model: its own fit, or a
+    pair's fitted values with the pair's other effect off, where those score lower.
+
+    A pair's fit moves its members' parameters and the model's as well as the other effect's, so
+    it can find a better point for one member alone than that member's own fit reached. Two fits
+    of the same model to the same data: the lower error is the better estimate, and a pair must
+    not be credited with what its member's fit could have reached (the rule of
+    :func:`unfinished_model`, one effect down). Costs one evaluation per pair and member."""
+    n = dataset.n_events
+    out: list[Trial] = []
+    for t in trials:
+        best = t.fit
+        if len(t.effects) == 1:
+            for p in trials:
+                if len(p.effects) < 2 or t.effects[0] not in p.effects \
+                        or not math.isfinite(p.fit.error):
+                    continue
+                choice = p.fit.choice
+                others = [e for e in p.effects if e != t.effects[0]]
+                for other in others:
+                    choice = without_effect(choice, other)
+                e = error_of(dataset, choice)
+                if math.isfinite(e) and e < best.error:
+                    best = FitResult(choice, e, {}, t.fit.free,
+                                     n_evaluations=t.fit.n_evaluations,
+                                     elapsed_s=t.fit.elapsed_s, cpu_s=t.fit.cpu_s,
+                                     message=f"at {p.name}'s fitted values without "
+                                             f"{' + '.join(others)}")
+        if best is t.fit:
+            out.append(t)
+            continue
+        say(f"  {t.name}: {t.fit.error:.3g} -> {best.error:.3g} {best.message}")
+        out.append(Trial(t.effects, best, _score(t.name, model, best, n), t.screened_error))
+    return out
 
 
 def contenders(chosen: Trial, trials: Sequence[Trial]) -> tuple[Trial, ...]:
@@ -423,7 +464,7 @@ def _forward(
         if not pool:
             break
         chosen, trials, screens = forward_step(dataset, model, pool, fit=fit, screen=screen,
-                                               say=say, deadline=deadline)
+                                               say=say, deadline=deadline, error_of=error_of)
         undecided = contenders(chosen, trials) if chosen is not None else ()
         again = None if error_of is None else unfinished_model(dataset, model, trials,
                                                                 error_of=error_of)

@@ -73,6 +73,18 @@ def test_a_pair_added_is_two_steps_and_a_removal_a_third():
     assert diag.to_json(True)["final_model"] == "paper + b"
 
 
+def test_the_verdict_s_set_leads_the_ranking():
+    # a + b is significant against the model with a lower delta BIC than a alone, but not
+    # against a: the verdict is a, and the table must not put a + b above it
+    base = fit((), 10.0)
+    t_a, t_ab = trial(base, ("a",), 4.0), trial(base, ("a", "b"), 3.8)
+    assert t_ab.score.delta_bic < t_a.score.delta_bic
+    rnd = sel.Round(base, [screened(("a",), 5.0), screened(("c",), 9.9)], [t_ab, t_a], t_a)
+    diag = ad.as_diagnosis(DATASET, sel.Selection(base, base, [], [rnd]))
+    assert diag.first.verdict.verdict == "a"
+    assert [s.effect for s in diag.first.ranking] == ["a", "a + b", "c"]
+
+
 def test_a_refit_goes_into_the_step_s_note_and_its_error():
     base = fit((), 10.0)
     refit = fit((), 8.0)

@@ -208,8 +208,11 @@ def test_a_gain_the_model_reaches_without_the_effect_is_not_credited_to_the_effe
     assert [s.kind for s in out.steps] == ["refit"]
     assert out.steps[0].error_before == 10.0 and out.steps[0].error_after == 6.0
     assert out.final.choice.effects == () and out.final.error == 6.0
-    # every evaluated point had the trial's effects off
-    assert t.evaluated and all(c.effects == () for c in t.evaluated)
+    # every evaluated point had the trial's effects off: the model, or a single at a pair's
+    # values (selection.best_known)
+    assert any(c.effects == () for c in t.evaluated)
+    assert all(c.effects == () or (len(c.effects) == 1 and "warm" in c.values)
+               for c in t.evaluated)
 
 
 def test_without_error_of_the_unfinished_gain_is_credited_as_before():
@@ -335,3 +338,32 @@ def test_each_full_fit_says_how_long_it_took():
                        say=said.append)
     fitted = [m for m in said if m.strip().startswith("fitted")]
     assert fitted and all(" in 42 s [" in m for m in fitted)
+
+
+def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
+    # the pair's fit found values at which `a` alone scores 2.05, where a's own fit stopped at 5:
+    # the pair's gain over `a` was a's unfinished fit, not `b`
+    t = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("a", "b"): 2.0},
+              warm_errors={S("a"): 2.05})
+
+    def error_of(_ds: Any, choice: ModelChoice) -> float:
+        key = frozenset(choice.effects)
+        if "warm" in choice.values and key in t.warm_errors:
+            return t.warm_errors[key]
+        return t.errors[key]
+
+    base = t.fit(DATASET, ModelChoice("paper"))
+    said: list[str] = []
+    out = sel.select_effects(DATASET, base, ["a", "b"], fit=t.fit,
+                             screen=sel.by_short_fits(t.screen), error_of=error_of,
+                             say=said.append)
+    assert out.steps[0].effects == ("a",) and out.steps[0].error_after == 2.05
+    single = next(tr for tr in out.rounds[0].trials if tr.effects == ("a",))
+    assert single.fit.error == 2.05
+    assert "at a + b's fitted values without b" in single.fit.message
+    assert any("a: 5 -> 2.05 at a + b's fitted values without b" in m for m in said)
+    # without error_of the pair takes the single's unfinished gain
+    t2 = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("a", "b"): 2.0})
+    out2 = sel.select_effects(DATASET, t2.fit(DATASET, ModelChoice("paper")), ["a", "b"],
+                              fit=t2.fit, screen=sel.by_short_fits(t2.screen))
+    assert out2.steps[0].effects == ("a", "b")
