@@ -81,6 +81,14 @@ class ModelSpec:
                 out[self.flat_name(e, k)] = v
         return out
 
+    def general_path(self) -> bool:
+        """Whether the kernel integrates this model by its general path (classical RK4
+        throughout, docs/model.md): some effect's plug-in terms act at these values
+        (:meth:`~rigctl.model.effects.base.Effect.terms_active`). The same model at other values
+        can take the exact path, at a fraction of the cost."""
+        return any(e.effect.has_terms() and e.effect.terms_active(e.values, self.base_values)
+                   for e in self.effects)
+
     def parameter_table(self) -> list[ParamInfo]:
         rows = [
             ParamInfo(s.name, float(self.base_values[s.name]), s.lower, s.upper, s.unit, "base",

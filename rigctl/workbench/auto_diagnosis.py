@@ -165,8 +165,7 @@ def _round(dataset: Dataset, rnd: SelectionRound, map_of: _Maps) -> Round:
         sc.explains = f"screened only ({s.best_at}; not fitted)"
         screened.append(sc)
     lead = [t.name for t in rnd.undecided] or ([rnd.chosen.name] if rnd.chosen else [])
-    ranking = sorted(fitted, key=lambda s: (s.effect not in lead,
-                                            lead.index(s.effect) if s.effect in lead else 0,
+    ranking = sorted(fitted, key=lambda s: (lead.index(s.effect) if s.effect in lead else len(lead),
                                             not s.significant, s.delta_bic)) + screened
     base_disc = discrepancies(base_map)
     if rnd.chosen is not None:

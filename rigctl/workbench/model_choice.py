@@ -81,3 +81,10 @@ def without_effect(choice: ModelChoice, effect: str) -> ModelChoice:
     values = {k: v for k, v in choice.values.items() if not k.startswith(prefix)}
     return ModelChoice(choice.base, tuple(e for e in choice.effects if e != effect), values,
                        choice.effect_files)
+
+
+def without_effects(choice: ModelChoice, effects: Sequence[str]) -> ModelChoice:
+    """``choice`` without each of ``effects`` (:func:`without_effect`)."""
+    for name in effects:
+        choice = without_effect(choice, name)
+    return choice

@@ -13,14 +13,18 @@ dataset and the model once, so a task carries only a point; each worker
   terminates the pool) and, on Linux, asks the kernel to kill it when its parent dies
   (:func:`rigctl.workbench.parallel.die_with_parent`).
 
-**A time limit per evaluation.** Once the pool has timed an evaluation, every point is sent with a
-limit of :data:`TIME_LIMIT_FACTOR` times the median of its evaluations so far (at least
-:data:`TIME_LIMIT_FLOOR_S`); a model run that passes it is stopped
-(:class:`~rigctl.model.simulator.TimeLimitError`) and the point counts as one that cannot be run,
-as a model that slips past the record's slip budget does. The first point of a pool runs alone and
-unlimited, to time one. Each worker first runs the model for a few samples, unlimited, so that
-compiling its code (numba: a plug-in's terms, the engine's paths in a fresh cache) is not charged
-to a point.
+**A time limit per evaluation.** Once the pool has timed an evaluation on a point's integration
+path, the point is sent with a limit of :data:`TIME_LIMIT_FACTOR` times the median of the pool's
+evaluations on that path so far (at least :data:`TIME_LIMIT_FLOOR_S`); a model run that passes it
+is stopped (:class:`~rigctl.model.simulator.TimeLimitError`) and the point counts as one that
+cannot be run, as a model that slips past the record's slip budget does. The path is the kernel's
+(:meth:`~rigctl.model.spec.ModelSpec.general_path`): a plug-in's terms act only away from their
+off values, and where they act the model is integrated by classical RK4 throughout, at a hundred
+or more times the exact path's cost. That difference is the model's design, not a point that
+chatters, so each path is timed against its own evaluations. The first point of a path runs
+alone and unlimited, to time one (and to compile what the path needs). Each worker first runs the
+model for a few samples, unlimited, so that compiling its code (numba: the engine's paths in a
+fresh cache) is not charged to a point.
 
 The parent waits for a batch in steps of :data:`POLL_S`, checking the budget's cancel flag
 (:meth:`~rigctl.workbench.budget.Budget.check`) and the signals noted
@@ -205,9 +209,13 @@ class EvaluationPool:
     def __init__(self, dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam],
                  budget: Budget, workers: int) -> None:
         self.budget, self.dataset = budget, dataset
+        self.choice, self.free = choice, tuple(free)
         self.workers = max(int(workers), 0)
-        self._times: list[float] = []
-        """Wall seconds of each evaluation that ran to its end (the time limit's median)."""
+        self._times: dict[bool, list[float]] = {}
+        """Wall seconds of each evaluation that ran to its end, by integration path (True: the
+        general path), for the time limit's median."""
+        self._tried: set[bool] = set()
+        """The paths that have had a point run alone (module docstring)."""
         self.n_timed_out = 0
         """Points stopped at the time limit: the part of a search that depends on the machine's
         speed and load (a point a quiet run evaluates can be stopped on a busy one)."""
@@ -238,22 +246,37 @@ class EvaluationPool:
         self._pool.join()
         self._pool = None
 
-    def time_limit_s(self) -> float | None:
-        """The wall seconds an evaluation may take now (module docstring; None before the
-        first evaluation is timed)."""
-        if not self._times:
+    def time_limit_s(self, general: bool = False) -> float | None:
+        """The wall seconds an evaluation on the exact (or ``general``) path may take now (module
+        docstring; None before an evaluation on that path is timed)."""
+        times = self._times.get(general)
+        if not times:
             return None
-        return max(TIME_LIMIT_FLOOR_S, TIME_LIMIT_FACTOR * statistics.median(self._times))
+        return max(TIME_LIMIT_FLOOR_S, TIME_LIMIT_FACTOR * statistics.median(times))
+
+    def general_path(self, point: Point) -> bool:
+        """Whether the model at ``point`` is integrated by the general path (plug-in terms
+        acting: :meth:`~rigctl.model.spec.ModelSpec.general_path`)."""
+        values = {fp.name: fp.to_p(float(x)) for fp, x in zip(self.free, point.u, strict=True)}
+        try:
+            return self.choice.with_values(values).build().general_path()
+        except (ParameterError, ValueError):  # fails at once in its evaluation: either path
+            return False
 
     def evaluate(self, points: Sequence[Point]) -> list[Outcome]:
         """Each point's outcome, in order; each counts one evaluation of the budget, each is
-        stopped at the pool's time limit (module docstring). Raises
+        stopped at its path's time limit (module docstring). Raises
         :class:`~rigctl.workbench.budget.SearchCancelledError` when the budget is cancelled."""
         points = list(points)
-        if not self._times and len(points) > 1:  # time one point first, then limit the rest
-            return self.evaluate(points[:1]) + self.evaluate(points[1:])
-        limit = self.time_limit_s()
-        points = [replace(p, time_limit_s=limit) for p in points]
+        paths = [self.general_path(p) for p in points]
+        first = next((i for i, g in enumerate(paths) if g not in self._tried), None)
+        if first is not None and len(points) > 1:  # time one point of the path, then the rest
+            alone = self.evaluate([points[first]])
+            rest = self.evaluate(points[:first] + points[first + 1:])
+            return rest[:first] + alone + rest[first:]
+        self._tried.update(paths)
+        points = [replace(p, time_limit_s=self.time_limit_s(g))
+                  for p, g in zip(points, paths, strict=True)]
         self.budget.check()
         if self._local is not None:
             out = []
@@ -265,7 +288,9 @@ class EvaluationPool:
             pending = self._pool.map_async(_evaluate_in_worker, points, chunksize=1)
             out = self._wait(pending)
             self.budget.spend(len(out))
-        self._times += [o.elapsed_s for o in out if math.isfinite(o.elapsed_s)]
+        for o, g in zip(out, paths, strict=True):
+            if math.isfinite(o.elapsed_s):
+                self._times.setdefault(g, []).append(o.elapsed_s)
         self.n_timed_out += sum(1 for o in out if o.timed_out)
         return out
 

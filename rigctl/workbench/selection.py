@@ -67,6 +67,7 @@ from rigctl.workbench.model_choice import (
     effect_class,
     with_effects,
     without_effect,
+    without_effects,
 )
 from rigctl.workbench.ranking import INDISTINGUISHABLE_DELTA_BIC, CandidateScore, score_candidate
 from rigctl.workbench.round_eta import RoundClock
@@ -310,22 +311,17 @@ def best_known(dataset: Dataset, model: FitResult, trials: Sequence[Trial], *,
     out: list[Trial] = []
     for t in trials:
         best = t.fit
-        if len(t.effects) == 1:
-            for p in trials:
-                if len(p.effects) < 2 or t.effects[0] not in p.effects \
-                        or not math.isfinite(p.fit.error):
-                    continue
-                choice = p.fit.choice
-                others = [e for e in p.effects if e != t.effects[0]]
-                for other in others:
-                    choice = without_effect(choice, other)
-                e = error_of(dataset, choice)
-                if math.isfinite(e) and e < best.error:
-                    best = FitResult(choice, e, {}, t.fit.free,
-                                     n_evaluations=t.fit.n_evaluations,
-                                     elapsed_s=t.fit.elapsed_s, cpu_s=t.fit.cpu_s,
-                                     message=f"at {p.name}'s fitted values without "
-                                             f"{' + '.join(others)}")
+        holding = [p for p in trials if len(t.effects) == 1 and len(p.effects) > 1
+                   and t.effects[0] in p.effects and math.isfinite(p.fit.error)]
+        for p in holding:
+            others = [e for e in p.effects if e != t.effects[0]]
+            choice = without_effects(p.fit.choice, others)
+            e = error_of(dataset, choice)
+            if math.isfinite(e) and e < best.error:
+                best = FitResult(choice, e, {}, t.fit.free, n_evaluations=t.fit.n_evaluations,
+                                 elapsed_s=t.fit.elapsed_s, cpu_s=t.fit.cpu_s,
+                                 message=f"at {p.name}'s fitted values without "
+                                         f"{' + '.join(others)}")
         if best is t.fit:
             out.append(t)
             continue
@@ -393,9 +389,7 @@ def unfinished_model(
     for t in trials:
         if not t.fit.error < model.error:
             continue
-        choice = t.fit.choice
-        for effect in t.effects:
-            choice = without_effect(choice, effect)
+        choice = without_effects(t.fit.choice, t.effects)
         e = error_of(dataset, choice)
         if math.isfinite(e) and (best is None or e < best[0]):
             best = (e, choice)

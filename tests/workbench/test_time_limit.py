@@ -68,3 +68,53 @@ def test_the_limit_is_the_factor_times_the_median_and_never_below_the_floor(data
         median = float(np.median([o.elapsed_s for o in out]))
         assert pool.time_limit_s() == pytest.approx(
             max(sp.TIME_LIMIT_FLOOR_S, sp.TIME_LIMIT_FACTOR * median))
+
+
+SCALED_FRICTION = '''
+"""scaled_friction: friction times (1 + c), as a plug-in term (the general path where c != 0)."""
+from rigctl.model import Effect, ParamSpec
+
+
+def mu_scaled(p, mu, x_m, v_m_s, t_s, fn_N, stick_s, z):
+    return mu * (1.0 + p[0])
+
+
+class ScaledFriction(Effect):
+    name = "scaled_friction"
+    summary = "friction times (1 + c)"
+    signature = "every peak higher"
+    reveal_protocol = "any"
+    params = (ParamSpec("c", 0.0, -0.2, 0.2, "-", "relative change", off=0.0),)
+
+    @staticmethod
+    def friction_term():
+        return mu_scaled
+'''
+
+
+@pytest.mark.parametrize("workers", [0, 1])
+def test_each_integration_path_is_timed_against_its_own_evaluations(
+        dataset, tmp_path, monkeypatch, workers):
+    """A plug-in's terms act only away from off, and there the model runs the general path at a
+    hundred or more times the exact path's cost: by design, not a chattering point. Timed against
+    the exact path's median, every point with the term on would be stopped, and a screen of the
+    user's own physics would see nothing beyond its off point."""
+    path = tmp_path / "scaled_friction.py"
+    path.write_text(SCALED_FRICTION)
+    choice = ModelChoice("paper", ("scaled_friction",), {}, (str(path),))
+    free = free_params(choice, ["scaled_friction.c"])
+    (fp,) = free
+    off = sp.Point(np.array([fp.to_u(0.0)]))
+    on = [sp.Point(np.array([fp.to_u(c)])) for c in (0.01, 0.02, 0.03)]
+    with sp.EvaluationPool(dataset, choice, free, Budget(), workers) as pool:
+        assert not pool.general_path(off) and all(pool.general_path(p) for p in on)
+        (first,) = pool.evaluate([off])  # the exact path timed
+        assert first.status == sp.OK
+        monkeypatch.setattr(sp, "TIME_LIMIT_FLOOR_S", 0.0)
+        monkeypatch.setattr(sp, "TIME_LIMIT_FACTOR", 5.0)
+        assert pool.time_limit_s(general=True) is None
+        out = pool.evaluate([off, *on])  # the first point on the general path runs alone
+        assert [o.status for o in out] == [sp.OK] * 4, [o.status for o in out]
+        assert pool.n_timed_out == 0
+        exact, general = pool.time_limit_s(), pool.time_limit_s(general=True)
+        assert exact is not None and general is not None and general > 5.0 * exact
