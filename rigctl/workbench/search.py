@@ -12,7 +12,10 @@
    (:func:`~rigctl.workbench.data_start.data_scaled`), the effects being added at their typical size
    (:func:`~rigctl.workbench.search_space.typical_point`) and the ratio guess
    (:mod:`rigctl.workbench.guess`), the mass the drops' shape states where they resolve the slip
-   (:mod:`rigctl.workbench.drop_shape`); each given start and the best with every effect off (a
+   (:mod:`rigctl.workbench.drop_shape`), and where the model states no mass (the preset's guess)
+   each given start's mass along its line at half a decade a step
+   (:meth:`~rigctl.workbench.search_space.SearchSpace.mass_line`); each given start and the best
+   with every effect off (a
    fit with an effect added is a point of its search); from the best, Sobol points
    (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an effect whose
    influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope there to
@@ -401,8 +404,9 @@ class SearchState:
     # -- stages -------------------------------------------------------------------------------
 
     def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; each of them and the best with the
-        effects being added off (:func:`added_effects`: the model's values with them off are the
+        """The model's values and its data-scale start; where the model states no mass, each
+        given start along its mass line (:meth:`SearchSpace.mass_line`); each of them and the
+        best with the effects being added off (:func:`added_effects`: the model's values with them off are the
         fit they were added to, its own fitted effects kept: a search from there never ends worse
         than that fit); from the best, Sobol points over the
         plausible ranges of the coordinates whose start is a guess (as many as a population,
@@ -416,6 +420,8 @@ class SearchState:
         drop = self.drop_shape_start(choices[0])
         if drop is not None:
             self.rank_starts([drop])
+        if "m_kg" not in choices[0].values:  # the mass is the preset's guess: its line
+            self.rank_starts([x for g in given for x in self.space.mass_line(g)])
         if self.space.spread:
             x0 = self.x_best
             points = []
