@@ -10,7 +10,6 @@ Hierarchy::
     +-- PlanError                a protocol plan beyond a limit or with bad parameters (experiments)
     +-- ParameterError           (also a SimulationError) values the model cannot take (rigctl.model)
     +-- EffectPluginError        an effect plug-in that cannot be loaded (rigctl.model.plugins)
-    +-- SchedulerError           the Dask scheduler cannot be reached (rigctl.workbench.parallel)
     +-- drivers' InvalidValueError, LimitError, SettingError
 
     DeviceError                  a device failed (drivers.errors: timeout, alarm, protocol, ...)

@@ -5,9 +5,11 @@
   campaign), simulate every run on its measured stage position and normal force, and report the
   event-aware error, per-feature errors, parameters with uncertainties and where the model fails.
 * ``model diagnose DATA... [--base ...] [--effects ...] [--effect-file F.py] [--candidates a,b]
-  [--auto] [--workers N] [--scheduler ADDRESS] [--timeout S] [--json] [--report DIR]``: fit every
-  candidate effect of the library and the plug-ins, rank them by evidence (BIC over slip events) and
-  give the verdict; ``--auto`` adds the best significant effect and repeats.
+  [--auto] [--workers N] [--timeout S] [--max-time S] [--json] [--report DIR]``: identify the
+  model, screen every candidate effect of the library and the plug-ins (and pairs), fit the
+  promising ones fully, rank them by evidence (BIC over slip events) and give the verdict;
+  ``--auto`` adds the best significant effect and repeats, then removes what does not earn its
+  place.
 
 See docs/workbench.md. Data problems raise ``DataError`` naming the file (exit 2).
 """
@@ -59,12 +61,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     cmp.add_argument("--no-fit", action="store_true",
                      help="compare with the parameter values as given (no identification)")
     cmp.add_argument("--workers", type=int, default=None, metavar="N",
-                     help="parallel processes for the fit's two starts on another rig's data "
-                          "(default: the CPUs, at most 2 used)")
+                     help="parallel processes evaluating the search (default: the CPUs)")
     cmp.set_defaults(func=run_compare)
 
     dia = sub.add_parser("diagnose", help="rank candidate effects by evidence",
-                         description="Fit base + each candidate effect and rank them.")
+                         description="Screen each candidate effect, fit the promising ones and "
+                                     "rank them; --auto chooses the effects.")
     _add_common(dia)
     dia.add_argument("--candidates", default="", metavar="A,B",
                      help="only these candidates (default: the whole library and plug-ins)")
@@ -72,22 +74,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                      help="add the best significant effect, re-identify, repeat")
     dia.add_argument("--workers", type=int, default=None, metavar="N",
                      help="parallel processes (default: the CPUs)")
-    dia.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                     help="run the candidate fits on this Dask distributed scheduler "
-                          "(tls://host:port with --tls-* on an untrusted network)")
-    dia.add_argument("--tls-ca", type=Path, default=None, metavar="CA.pem",
-                     help="certificate authority of a tls:// scheduler")
-    dia.add_argument("--tls-cert", type=Path, default=None, metavar="CERT.pem",
-                     help="this client's certificate for a tls:// scheduler")
-    dia.add_argument("--tls-key", type=Path, default=None, metavar="KEY.pem",
-                     help="this client's private key for a tls:// scheduler")
     dia.add_argument("--timeout", type=float, default=300.0, metavar="S",
-                     help="time limit of one candidate fit in seconds (default 300); with "
-                          "--auto a fit that reaches it ends with its best point so far")
+                     help="time limit of one candidate fit in seconds (default 300): a fit that "
+                          "reaches it ends with its best point so far")
     dia.add_argument("--max-time", type=float, default=None, metavar="S",
-                     help="--auto: time limit of the whole run in seconds (default 540; 0: none); "
-                          "each fit gets its share of the time left, and at the limit the run "
-                          "ends with the model it has and says so")
+                     help="time limit of the whole run in seconds (default 540; 0: none); each "
+                          "fit gets its share of the time left, and at the limit the run ends "
+                          "with the model it has and says so")
     dia.set_defaults(func=run_diagnose)
 
 
@@ -178,35 +171,6 @@ def _print_compare(cmp: Any) -> None:
         print(f"  - {s}")
 
 
-def scheduler_security(args: argparse.Namespace) -> Any:
-    """The ``distributed.Security`` of ``--tls-ca/--tls-cert/--tls-key`` (None without them).
-
-    A ``tcp://`` scheduler gets pickled tasks unauthenticated and unencrypted, i.e. whoever can
-    reach it runs code in this process's results: fine on localhost, a warning elsewhere."""
-    files = {"--tls-ca": args.tls_ca, "--tls-cert": args.tls_cert, "--tls-key": args.tls_key}
-    given = {k: v for k, v in files.items() if v is not None}
-    address = str(args.scheduler)
-    if not given:
-        host = address.split("://", 1)[-1].rsplit(":", 1)[0].strip("[]")
-        if address.startswith("tcp://") and host not in ("localhost", "127.0.0.1", "::1"):
-            print(f"warning: {address} is plain TCP: tasks go unauthenticated and unencrypted; "
-                  "on an untrusted network use tls:// with --tls-ca, --tls-cert and --tls-key",
-                  file=sys.stderr)
-        return None
-    if len(given) != len(files):
-        missing = ", ".join(k for k in files if k not in given)
-        raise UsageError(f"TLS needs all of --tls-ca, --tls-cert and --tls-key (missing {missing})")
-    for option, path in given.items():
-        if not path.is_file():
-            raise UsageError(f"{option} {path}: no such file")
-    if not address.startswith("tls://"):
-        raise UsageError(f"--tls-* given but --scheduler {address} is not a tls:// address")
-    from distributed import Security
-
-    return Security(tls_ca_file=str(args.tls_ca), tls_client_cert=str(args.tls_cert),
-                    tls_client_key=str(args.tls_key), require_encryption=True)
-
-
 def run_diagnose(args: argparse.Namespace) -> int:
     from rigctl.records.dataset import prepare_dataset
     from rigctl.workbench.compare import compare
@@ -227,28 +191,14 @@ def run_diagnose(args: argparse.Namespace) -> int:
             raise UsageError(f"unknown candidate '{name}' (known: {', '.join(sorted(known))})")
     if not candidates:
         raise UsageError("no candidate effects left to try")
-    if args.auto and args.scheduler:
-        raise UsageError("--auto runs its searches on this machine's worker processes "
-                         "(--workers); --scheduler serves the ranking without --auto")
     if args.report:
         check_output_folder(args.report, "--report")
     runs = _load(args)
     dataset = prepare_dataset(runs)
     progress = _progress(args)
-    client = None
-    if args.scheduler:
-        from rigctl.workbench.parallel import CONNECT_TIMEOUT_S, connect
-
-        # connect before any fitting: an unreachable cluster is a one-line error at once
-        client = connect(args.scheduler, min(args.timeout, CONNECT_TIMEOUT_S),
-                         security=scheduler_security(args))
-    try:
-        diag = diagnose(dataset, choice, candidates=candidates, auto=args.auto,
-                        workers=args.workers, scheduler=client, progress=progress,
-                        timeout_s=args.timeout, max_run_s=max_run_s)
-    finally:
-        if client is not None:
-            client.close()
+    diag = diagnose(dataset, choice, candidates=candidates, auto=args.auto,
+                    workers=args.workers, progress=progress, timeout_s=args.timeout,
+                    max_run_s=max_run_s)
     if args.report:
         cmp = compare(runs, diag.first.model.choice, identify=False, dataset=dataset)
         cmp.fit = diag.first.model
@@ -267,14 +217,11 @@ def run_diagnose(args: argparse.Namespace) -> int:
 
 
 def _max_time(args: argparse.Namespace) -> float | None:
-    """``--max-time``: the --auto run's limit in seconds (None: none)."""
+    """``--max-time``: the run's limit in seconds (None: none)."""
     from rigctl.workbench.run_deadline import DEFAULT_RUN_S
 
     if args.max_time is None:
         return DEFAULT_RUN_S
-    if not args.auto:
-        raise UsageError("--max-time limits an --auto run; without --auto each candidate fit "
-                         "has --timeout")
     if not (math.isfinite(args.max_time) and args.max_time >= 0):
         raise UsageError(f"--max-time must be 0 (no limit) or a positive number of seconds, "
                          f"not {args.max_time}")
@@ -309,6 +256,8 @@ def _print_diagnosis(diag: Any, auto: bool) -> None:
         print("\nwhere the model fails")
         for s in r0.discrepancies:
             print(f"  - {s}")
+    if diag.time_limited and not auto:
+        print(f"\nstopped: {diag.time_limited} (--max-time)")
     if auto:
         print("\nerror at each step (bar: error relative to the first model)")
         first = diag.steps[0].error

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -212,12 +213,9 @@ def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, .
         raise ValueError("no candidate effects left to try")
     report(f"loading {len(request.paths)} path(s)", math.nan)
     dataset = prepare_dataset(load(request.paths))
-    done = [0]
 
     def progress(msg: str) -> None:
-        finished = msg.startswith("  ") and msg.strip().split(":")[0].split()[-1] in names
-        done[0] += finished
-        report(msg.strip(), done[0] / len(names) if done[0] else math.nan)
+        report(msg.strip(), part_done(msg))
 
     plugins = plugin_names(names)
 
@@ -246,6 +244,14 @@ def diagnose_job(report: Report, request: ModelRequest, candidates: tuple[str, .
                         shown)
 
 
+def part_done(msg: str) -> float:
+    """The fraction of its part of the step a progress line reports (``[3/11, about 40 s left in
+    this round]``: the screens, the full fits; :class:`~rigctl.workbench.round_eta.RoundClock`),
+    NaN for a line that reports none."""
+    m = re.search(r"\[(\d+)/(\d+)\b", msg)
+    return int(m.group(1)) / int(m.group(2)) if m and int(m.group(2)) > 0 else math.nan
+
+
 def plugin_names(names: Sequence[str]) -> list[str]:
     """The candidates that are not the library's (plug-in files and entry points)."""
     from rigctl.model.effects import LIBRARY
@@ -268,15 +274,11 @@ def plugin_uncertainties(dataset: Dataset, effect: str, fit: FitResult) -> Candi
     """``effect``'s parameters with uncertainties from a Jacobian of all the fit's free parameters
     at its values (:func:`~rigctl.workbench.identify.with_uncertainties`: the covariance
     s^2 (J^T J)^-1, so the effect's sigma includes its correlation with the base parameters); the
-    values alone (``±?``) where the fit switched the effect off or the Jacobian cannot be taken."""
+    values alone (``±?``) where the Jacobian cannot be taken."""
     from rigctl.errors import SimulationError
     from rigctl.model import ParameterError
-    from rigctl.workbench.fitting import SWITCHED_OFF
     from rigctl.workbench.identify import with_uncertainties
 
-    if fit.message.startswith(SWITCHED_OFF):
-        return candidate_params(effect, fit, final=True, note="switched off: it does not improve "
-                                "the fit")
     try:
         return candidate_params(effect, with_uncertainties(dataset, fit), final=True)
     except (SimulationError, ParameterError, ValueError, np.linalg.LinAlgError) as exc:

@@ -14,14 +14,16 @@ score
 fit
     :mod:`~rigctl.workbench.data_scale` (starting values at the data's own scale),
     :mod:`~rigctl.workbench.guess` (ratio guess), :mod:`~rigctl.workbench.identify` (parameters,
-    objective, least squares, uncertainties), :mod:`~rigctl.workbench.fitting` (the model as given,
-    the model plus one candidate effect), :mod:`~rigctl.workbench.parallel` (candidate fits in
-    worker processes or on Dask).
+    objective, uncertainties), :mod:`~rigctl.workbench.search` (the one search: starts, CMA-ES,
+    a least-squares polish, one budget; its points evaluated in the worker processes of
+    :mod:`~rigctl.workbench.search_pool`), :mod:`~rigctl.workbench.screening` (the score screen
+    of candidate effects).
 decide
     :mod:`~rigctl.workbench.residual_map` (where it fails, in words),
     :mod:`~rigctl.workbench.ranking` (evidence, verdict, what no effect explains, runnable
-    suggestions), :mod:`~rigctl.workbench.diagnose` (rounds, ``--auto``, every effect earns its
-    place).
+    suggestions), :mod:`~rigctl.workbench.selection` (forward selection and backward elimination
+    over the search; the ranking is its first step), :mod:`~rigctl.workbench.diagnose` (the
+    ranking and ``--auto`` told as rounds and steps).
 report
     :mod:`~rigctl.workbench.compare` (one model against the data), :mod:`~rigctl.workbench.report`
     and :mod:`~rigctl.workbench.plots` (HTML and figures); :mod:`~rigctl.workbench.campaigns`
@@ -44,8 +46,7 @@ _API: dict[str, str] = {
     "prepare_dataset": "rigctl.records.dataset",
     "RigDescription": "rigctl.records.rig_description",
     "evaluate": "rigctl.workbench.evaluate",
-    "identify_model": "rigctl.workbench.fitting",
-    "fit_candidate": "rigctl.workbench.fitting",
+    "search_model": "rigctl.workbench.search",
     "FitResult": "rigctl.workbench.identify",
     "compare": "rigctl.workbench.compare",
     "Comparison": "rigctl.workbench.compare",

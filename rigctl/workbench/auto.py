@@ -19,13 +19,13 @@ from rigctl.errors import SimulationError
 from rigctl.model import ParameterError
 from rigctl.records.dataset import Dataset
 from rigctl.workbench.budget import Budget, SearchCancelledError
-from rigctl.workbench.fitting import error_or_inf
 from rigctl.workbench.identify import FitResult, fn_range
 from rigctl.workbench.model_choice import ModelChoice, candidate_effects
 from rigctl.workbench.run_deadline import RunDeadline
 from rigctl.workbench.screening import Screened, score_screen
 from rigctl.workbench.search import search_model
-from rigctl.workbench.selection import Selection, select_effects
+from rigctl.workbench.selection import Selection, rank_effects, select_effects
+from rigctl.workbench.start_error import error_or_inf
 
 Say = Callable[[str], None]
 
@@ -33,10 +33,12 @@ def auto_select(
     dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None = None,
     pool: Sequence[str] | None = None, cancel: threading.Event | None = None,
     say: Say = lambda _m: None, fit_wall_s: float | None = None,
-    max_run_s: float | None = None,
+    max_run_s: float | None = None, rank_only: bool = False,
 ) -> Selection:
     """Identify ``model`` (unless it is a fit already) and choose its effects from ``pool``
-    (default: every library and plug-in effect it lacks). ``cancel``, an event shared by every
+    (default: every library and plug-in effect it lacks); ``rank_only``: rank them in one forward
+    step and add nothing (:func:`~rigctl.workbench.selection.rank_effects`: ``diagnose`` without
+    ``--auto``). ``cancel``, an event shared by every
     search and screen of the run, ends it when set (the search running raises
     :class:`~rigctl.workbench.budget.SearchCancelledError`); each search keeps its own default
     budget. ``fit_wall_s``: the time limit of each fit after the model's own (``--timeout``): a
@@ -47,7 +49,7 @@ def auto_select(
     it has at the limit, :attr:`Selection.time_limited`); None: none."""
     with RunDeadline(max_run_s, cancel) as deadline:
         return _auto_select(dataset, model, workers=workers, pool=pool, deadline=deadline,
-                            say=say, fit_wall_s=fit_wall_s)
+                            say=say, fit_wall_s=fit_wall_s, rank_only=rank_only)
 
 
 def _limit(*limits: float | None) -> float | None:
@@ -58,6 +60,7 @@ def _limit(*limits: float | None) -> float | None:
 def _auto_select(
     dataset: Dataset, model: ModelChoice | FitResult, *, workers: int | None,
     pool: Sequence[str] | None, deadline: RunDeadline, say: Say, fit_wall_s: float | None,
+    rank_only: bool = False,
 ) -> Selection:
     cancel = deadline.cancel
 
@@ -97,8 +100,9 @@ def _auto_select(
             "its best point so far is the model every step is judged against")
     fns = fn_range(dataset)
     candidates = candidate_effects(base.choice) if pool is None else list(pool)
-    return select_effects(dataset, base, candidates, fit=fit, screen=screen, say=say,
-                          error_of=lambda ds, c: error_or_inf(ds, c, fns), deadline=deadline)
+    choose = rank_effects if rank_only else select_effects
+    return choose(dataset, base, candidates, fit=fit, screen=screen, say=say,
+                  error_of=lambda ds, c: error_or_inf(ds, c, fns), deadline=deadline)
 
 
 def _say_timed_out(res: FitResult, say: Say) -> None:

@@ -46,20 +46,24 @@ def diagnose_auto(
     workers: int | None = None, progress: Say | None = None, baseline: FitResult | None = None,
     on_fit: FitListener | None = None, cancel: Event | None = None,
     fit_wall_s: float | None = DEFAULT_TIMEOUT_S, max_run_s: float | None = DEFAULT_RUN_S,
+    rank_only: bool = False,
 ) -> Diagnosis:
     """``choice``'s effects chosen on ``dataset`` (module docstring). ``baseline``: the model
     already identified; ``on_fit``: each fully fitted set's fit, as the rounds end; ``cancel``:
     an event that ends the run (:class:`~rigctl.workbench.budget.SearchCancelledError`);
     ``fit_wall_s``: each fit's time limit after the model's own (``--timeout``, None: none;
     :func:`~rigctl.workbench.auto.auto_select`); ``max_run_s``: the whole run's (``--max-time``,
-    :class:`~rigctl.workbench.run_deadline.RunDeadline`; None: none)."""
+    :class:`~rigctl.workbench.run_deadline.RunDeadline`; None: none); ``rank_only``: the
+    candidates ranked in one step and nothing added (``diagnose`` without ``--auto``)."""
     say = progress or (lambda _m: None)
     pool = list(candidates) if candidates is not None else candidate_effects(choice)
-    say(f"identifying {choice.label()} on {dataset.n_events} slip events, then choosing among "
+    what = "ranking" if rank_only else "choosing among"
+    say(f"identifying {choice.label()} on {dataset.n_events} slip events, then {what} "
         f"{len(pool)} candidate effects ...")
     with signals_raise():  # Ctrl-C and SIGTERM end the run: every pool terminated
         sel = auto_select(dataset, baseline or choice, workers=workers, pool=pool,
-                          cancel=cancel, say=say, fit_wall_s=fit_wall_s, max_run_s=max_run_s)
+                          cancel=cancel, say=say, fit_wall_s=fit_wall_s, max_run_s=max_run_s,
+                          rank_only=rank_only)
     if on_fit is not None:
         for rnd in sel.rounds:
             for t in rnd.trials:

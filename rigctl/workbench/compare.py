@@ -1,7 +1,8 @@
 """Compare a model with a measured campaign: identify it, simulate every run, locate the misfit.
 
 This is ``rigctl model compare``: the model (base + chosen effects) is identified on the data
-(:mod:`rigctl.workbench.fitting`), simulated on each run's measured stage position and normal force,
+by the one search (:mod:`rigctl.workbench.search`), simulated on each run's measured stage position
+and normal force,
 and put against the measurement as per-event features, the event-aware error
 (:mod:`rigctl.workbench.metrics`) and a residual map with the largest structured discrepancies in
 words (:mod:`rigctl.workbench.residual_map`).
@@ -20,8 +21,8 @@ from rigctl.records.dataset import Dataset, prepare_dataset, protocols_present
 from rigctl.records.delta_stitch import stitch_record
 from rigctl.records.feature_info import FEATURES
 from rigctl.records.image_features import model_ratios
+from rigctl.workbench.budget import said
 from rigctl.workbench.evaluate import Evaluation, evaluate
-from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.metrics import FeatureError, physical_errors
 from rigctl.workbench.model_choice import ModelChoice
@@ -31,6 +32,7 @@ from rigctl.workbench.residual_map import (
     residual_map,
     significant_trends,
 )
+from rigctl.workbench.search import search_model
 
 
 @dataclass
@@ -120,11 +122,13 @@ def compare(
     identify: bool = True,
     dataset: Dataset | None = None,
     progress: Callable[[str], None] | None = None,
-    workers: int = 1,
+    workers: int | None = None,
+    max_wall_s: float | None = None,
 ) -> Comparison:
-    """Identify ``choice`` on the runs (unless ``identify`` is False) and compare it with them.
-    ``workers`` > 1: on another rig's data the fit's two starts go to two worker processes
-    (:func:`~rigctl.workbench.fitting.identify_model`)."""
+    """Identify ``choice`` on the runs by the one search (unless ``identify`` is False) and
+    compare it with them. ``workers``: the search's worker processes (None: the CPUs; 0: this
+    process); ``max_wall_s``: the search's time limit (None: its own budget), where it ends with
+    its best point so far (:attr:`FitResult.time_limited`)."""
     say = progress or (lambda _m: None)
     # the probes' readings stitched across their mounts' re-centrings, for the report's figures
     # as for the dataset (rigctl.records.delta_stitch; a stitched run is not stitched again)
@@ -132,7 +136,8 @@ def compare(
     ds = dataset or prepare_dataset(runs)
     if identify:
         say(f"identifying {choice.label()} on {ds.n_events} slip events ...")
-        fit = identify_model(ds, choice, workers=workers)
+        fit = search_model(ds, choice, workers=workers, progress=said(say),
+                           max_wall_s=max_wall_s)
     else:
         ev0 = evaluate(ds, choice)
         fit = FitResult(choice, ev0.score.error, ev0.score.feature_error, ())

@@ -10,8 +10,7 @@ Derivatives are forward differences of the simulated features (the event-driven 
 simulation cheap). Each parameter's step adapts so that the residual moves by 2-20 scatter units:
 above the features' sampling-phase jitter, within the linear range. :class:`HybridJacobian`
 differences chosen columns at every step and keeps the others current by Broyden rank-one updates
-(Broyden, Math. Comp. 19, 1965); candidate fits use it for the base parameters
-(:mod:`rigctl.workbench.fitting`).
+(Broyden, Math. Comp. 19, 1965).
 
 Uncertainty: the covariance s^2 (J^T J)^-1 of the linearised problem, s^2 = |r|^2 / (m - p) (the
 standard Gauss-Newton estimate, e.g. Seber & Wild, *Nonlinear Regression*, sec. 2.1), mapped to
@@ -59,7 +58,7 @@ FAILED_FACTOR = 100.0
 DYNAMIC_PARAMS = ("m_kg", "c0_N_s_per_m")
 """Mass and drive damping: fitted unless the rig description states them (a rig knows its own; the
 simulated rig states them), since elsewhere the start is only a guess
-(:func:`rigctl.workbench.fitting.identify_model`)."""
+(:func:`rigctl.workbench.search.search_model`)."""
 DYNAMIC_SPAN = 1e3  # mass and damping fitted within a factor 1000 of their start either way
 
 
@@ -135,8 +134,8 @@ data, whatever its error: each missing slip costs a fixed z (:data:`~rigctl.work
 MISSING_EVENT_Z`), so a model that makes no slips scores a flat error that no small step changes,
 and that capped charge can score below a model that makes every slip but pairs them badly (a
 trap). Half: beyond it the model describes fewer of the measured slips than it leaves out (the
-case that showed the trap: docs/decisions.md). Starts that miss them are refused
-(:func:`rigctl.workbench.fitting.identify_model`), and a fit ends at the best point visited that
+case that showed the trap: docs/decisions.md). A point that misses them ranks after every point
+that does not (:mod:`rigctl.workbench.search`), and a fit ends at the best point visited that
 does not (:class:`Objective`)."""
 
 

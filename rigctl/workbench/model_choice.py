@@ -1,6 +1,6 @@
 """A model as plain, picklable data: base, effect names, plug-in files and parameter values.
 
-Candidate fits run in other processes (or on a Dask cluster), so the model travels as a
+The search evaluates in worker processes, so the model travels as a
 :class:`ModelChoice` and is rebuilt there with :func:`rigctl.model.build_model`. Plug-in effects
 travel as the paths of their files and are loaded (once per process) through
 :func:`rigctl.model.plugins.effect_registry`, so they take part exactly like built-in ones.

@@ -1,6 +1,7 @@
 """Rank candidate effects by evidence and reach a verdict.
 
-For each candidate the base model plus the effect is identified (:mod:`rigctl.workbench.fitting`).
+For each candidate the base model plus the effect is identified by the one search
+(:mod:`rigctl.workbench.search`).
 Evidence is the Bayesian information criterion (Schwarz, Ann. Stat. 6, 1978) with the number of slip
 events n as the sample count and the event-aware error E (:mod:`rigctl.workbench.metrics`) as the
 residual scale:

@@ -1,12 +1,12 @@
-"""How long the rest of a diagnose round (or a step's screens, fits or refits) will take, from
-the parts already done.
+"""How long the rest of a step's screens, full fits or refits will take, from the parts already
+done.
 
-A round fits every candidate effect (:func:`rigctl.workbench.diagnose.run_round`), each with a
-measured cost: the time one simulation of it takes (:func:`~rigctl.workbench.diagnose.cost_order`).
-A fit's wall time is roughly its number of simulations times that cost, and the number of
-simulations varies less between candidates than the cost does (the same search with the same
-budget), so the time left is estimated as the wall time so far scaled by the cost still to fit over
-the cost fitted::
+Each part of a selection step (:mod:`rigctl.workbench.selection`: the screens of the singles, of
+the pairs, the full fits, the backward refits) is a list of items with a relative cost each (equal
+where nothing tells them apart). An item's wall time is roughly its number of simulations times
+that cost, and the number of simulations varies less between items than the cost does (the same
+search with the same budget), so the time left is estimated as the wall time so far scaled by the
+cost still to do over the cost done::
 
     t_left = t_elapsed * sum(cost of the candidates left) / sum(cost of the candidates done)
 

@@ -1,8 +1,7 @@
 """Identification as one search: data-scale starts, CMA-ES, a least-squares polish, one budget.
 
-(``diagnose --auto`` identifies every model with it, :mod:`rigctl.workbench.auto`; ``compare``
-and the ranking without ``--auto`` still call :func:`rigctl.workbench.fitting.identify_model` and
-:func:`~rigctl.workbench.fitting.fit_candidate`. docs/identification.md, "The search".)
+(``compare``, the ranking and ``diagnose --auto`` identify every model with it,
+:mod:`rigctl.workbench.auto`. docs/identification.md, "The search".)
 
 1. **Space** (:mod:`rigctl.workbench.search_space`): every ``identify`` parameter of the base and
    the effects, the slider mass and drive damping where the data do not state them (the mass tied
@@ -10,10 +9,13 @@ and the ranking without ``--auto`` still call :func:`rigctl.workbench.fitting.id
    log2 of the element count where an effect spreads the elements' thresholds; each coordinate with
    an initial standard deviation, a quarter of where its optimum is expected.
 2. **Starts**: the model's current values, the same at the data's scale
-   (:func:`~rigctl.workbench.fitting.data_scaled`), the effects being added at their typical size
+   (:func:`~rigctl.workbench.data_start.data_scaled`), the effects being added at their typical size
    (:func:`~rigctl.workbench.search_space.typical_point`) and the ratio guess
    (:mod:`rigctl.workbench.guess`), the mass the drops' shape states where they resolve the slip
-   (:mod:`rigctl.workbench.drop_shape`); each given start and the best with every effect off (a
+   (:mod:`rigctl.workbench.drop_shape`), and where the model states no mass (the preset's guess)
+   each given start's mass along its line at half a decade a step
+   (:meth:`~rigctl.workbench.search_space.SearchSpace.mass_line`); each given start and the best
+   with every effect off (a
    fit with an effect added is a point of its search); from the best, Sobol points
    (``scipy.stats.qmc``) over the effects' plausible ranges, not only near off (an effect whose
    influence vanishes smoothly at off, a Stribeck velocity going to 0, gives no slope there to
@@ -39,8 +41,7 @@ and the ranking without ``--auto`` still call :func:`rigctl.workbench.fitting.id
    polish`: the trust region then spans about one such step per coordinate, whatever the
    parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
    than the scatter or a trial step is shorter than the residual resolves; then the answer's
-   uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`), as ``identify_model``
-   reports them.
+   uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`).
 
 The population is evaluated in parallel worker processes holding the dataset once
 (:mod:`rigctl.workbench.search_pool`). One :class:`~rigctl.workbench.budget.Budget` bounds
@@ -65,9 +66,9 @@ from rigctl.records.dataset import Dataset
 from rigctl.records.rig_description import check_names
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget, Progress
+from rigctl.workbench.data_start import data_scaled
 from rigctl.workbench.drop_shape import drop_shape_mass
 from rigctl.workbench.element_count import spreads_elements
-from rigctl.workbench.fitting import data_scaled
 from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
     FAILED_FACTOR,
@@ -403,8 +404,9 @@ class SearchState:
     # -- stages -------------------------------------------------------------------------------
 
     def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; each of them and the best with the
-        effects being added off (:func:`added_effects`: the model's values with them off are the
+        """The model's values and its data-scale start; where the model states no mass, each
+        given start along its mass line (:meth:`SearchSpace.mass_line`); each of them and the
+        best with the effects being added off (:func:`added_effects`: the model's values with them off are the
         fit they were added to, its own fitted effects kept: a search from there never ends worse
         than that fit); from the best, Sobol points over the
         plausible ranges of the coordinates whose start is a guess (as many as a population,
@@ -418,6 +420,8 @@ class SearchState:
         drop = self.drop_shape_start(choices[0])
         if drop is not None:
             self.rank_starts([drop])
+        if "m_kg" not in choices[0].values:  # the mass is the preset's guess: its line
+            self.rank_starts([x for g in given for x in self.space.mass_line(g)])
         if self.space.spread:
             x0 = self.x_best
             points = []

@@ -11,7 +11,7 @@ dataset and the model once, so a task carries only a point; each worker
   pool per worker would put more busy threads than cores on the machine;
 * ignores SIGINT (Ctrl-C at a terminal reaches the whole process group; the parent handles it and
   terminates the pool) and, on Linux, asks the kernel to kill it when its parent dies
-  (:func:`rigctl.workbench.parallel.die_with_parent`, as the diagnosis's task processes do).
+  (:func:`rigctl.workbench.parallel.die_with_parent`).
 
 **A time limit per evaluation.** Once the pool has timed an evaluation on a point's integration
 path, the point is sent with a limit of :data:`TIME_LIMIT_FACTOR` times the median of the pool's
@@ -185,7 +185,7 @@ _WORKER: dict[str, Any] = {}
 def _init_worker(dataset_pickle: bytes, choice: ModelChoice, free: tuple[FreeParam, ...],
                  parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    # a forked worker inherits the parent's SIGTERM handler (parallel.raise_terminated, where a
+    # a forked worker inherits the parent's SIGTERM handler (interrupts.signals_raise, where a
     # diagnose installed it): the pool's terminate must end the worker, not raise in it
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent_pid)

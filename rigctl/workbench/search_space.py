@@ -37,7 +37,7 @@ from rigctl.model.effects import Effect
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.data_scale import NEAR_PRESET, scale_effect_values, scale_ratios
-from rigctl.workbench.fitting import campaign_scale
+from rigctl.workbench.data_start import campaign_scale
 from rigctl.workbench.identify import DYNAMIC_PARAMS, FreeParam, free_params
 from rigctl.workbench.model_choice import ModelChoice, effect_class, effect_of
 from rigctl.workbench.search_pool import Point
@@ -62,6 +62,13 @@ DAMPING_FOLLOWS_MASS = 0.5
 """d ln C0 / d ln M at a fixed damping ratio (C0 = 2 zeta sqrt(K0 M)): where the mass is spread
 the drive damping moves with sqrt(M), as a mass that changes keeps the ringing's decay per cycle,
 and the damping's own spread is the damping ratio's."""
+MASS_LINE_STEP_DECADES = 0.5
+"""The mass line's step (:meth:`SearchSpace.mass_line`): whether a model makes the measured slips
+at all can hinge on its mass within a factor of a few (the spring-block's stick-slip boundary
+depends on mass and damping at a given stiffness and friction law: Rice & Ruina 1983; Heslot et
+al. 1994), a window that a few random draws over four decades of mass miss. Half a decade places
+a point within a factor 10^0.25 = 1.8 of any mass on the line, 1.33 in the slip's frequency
+(which goes as M^-1/2)."""
 N_ELEMENTS_RANGE = (2, 64)
 """Element counts searched: from 2 (one element has no thresholds to spread) to 64, past which
 each of the N steps of the stick ramp is under 2 % of it, inside a record's force scatter, while
@@ -129,6 +136,24 @@ class SearchSpace:
             if j in values:
                 x[i] += a * (values[j] - x0[j])
         return x
+
+    def mass_line(self, x0: FloatArray) -> list[FloatArray]:
+        """``x0`` with the mass at every MASS_LINE_STEP_DECADES over its plausible interval
+        (:attr:`spread`), the drive damping moved with it at ``x0``'s damping ratio
+        (:attr:`follows`); none where the mass is no spread coordinate (stated, tied to a
+        resolved ringing, or fixed by the rig description)."""
+        i = next((k for k, fp in enumerate(self.free) if fp.name == "m_kg"), None)
+        if i is None or i not in self.spread or not self.free[i].log:
+            return []
+        fp = self.free[i]
+        lo, hi = self.spread[i]
+        m0 = fp.to_p(float(x0[i]))
+        out = []
+        for k in range(-8, 9):
+            u = fp.to_u(m0 * 10.0 ** (k * MASS_LINE_STEP_DECADES))
+            if k != 0 and lo - 1e-9 <= u <= hi + 1e-9:  # the interval's ends to rounding
+                out.append(np.clip(self.spread_point(x0, {i: u}), self.lower, self.upper))
+        return out
 
     def switching_off(self, effects: Collection[str]) -> SearchSpace:
         """This space with only ``effects``' coordinates in :attr:`off`: a model that already has

@@ -446,12 +446,39 @@ def select_effects(
     return sel
 
 
+def rank_effects(
+    dataset: Dataset, base: FitResult, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
+    say: Say = lambda _m: None, error_of: ErrorFn | None = None,
+    deadline: RunDeadline | None = None,
+) -> Selection:
+    """The candidates of ``pool`` ranked on ``base`` and nothing added: one forward step (screens,
+    gate, full fits, the model refitted where its trials show its own fit unfinished) whose round
+    is the ranking and whose chosen set is the verdict; the final model is the one the step was
+    judged against (``diagnose`` without ``--auto``). A step repeated after the model's refit
+    leaves its last round only (the refit is a ``refit`` step). Where ``deadline`` ends the step,
+    the selection holds no round and says so (:attr:`Selection.time_limited`)."""
+    sel = Selection(base, base)
+    try:
+        sel.final = _forward(dataset, sel, pool, fit=fit, screen=screen, max_steps=1, say=say,
+                             error_of=error_of, deadline=deadline, add=False)
+        sel.rounds = sel.rounds[-1:]
+    except SearchCancelledError:
+        if not _time_is_up(deadline):
+            raise
+        sel.final = sel.steps[-1].model if sel.steps else base
+        sel.rounds = []
+        sel.time_limited = "the run's time limit ended the ranking before its step was judged"
+        say(f"time limit: {sel.time_limited}")
+    return sel
+
+
 def _forward(
     dataset: Dataset, sel: Selection, pool: Sequence[str], *, fit: FitFn, screen: ScreenFn,
     max_steps: int, say: Say, error_of: ErrorFn | None, deadline: RunDeadline | None,
+    add: bool = True,
 ) -> FitResult:
     """Forward selection into ``sel`` (its rounds and steps as they happen): the model it ends
-    at."""
+    at. ``add`` False: each step's chosen set is its round's verdict only, never added."""
     model, pool = sel.base, list(pool)
     steps = 0
     while steps < max_steps:
@@ -479,7 +506,7 @@ def _forward(
             sel.rounds.append(Round(model, screens, trials, None, undecided))
             break
         sel.rounds.append(Round(model, screens, trials, chosen))
-        if chosen is None:
+        if chosen is None or not add:
             break
         say(f"adding {chosen.name}: {model.error:.3g} -> {chosen.fit.error:.3g}")
         sel.steps.append(Step("add", chosen.effects, model.error, chosen.fit.error,

@@ -15,14 +15,13 @@ from rigctl.data import DataError
 from rigctl.errors import DeviceError, InputError, SimulationError, StorageError, UsageError
 from rigctl.model import ParameterError
 from rigctl.model.plugins import EffectPluginError
-from rigctl.workbench import fitting
-from rigctl.workbench.parallel import SchedulerError
+from rigctl.workbench import start_error
 
 
 @pytest.mark.parametrize(
     "kind",
     [UsageError, ConfigError, DataError, StorageError, PlanError, ParameterError, EffectPluginError,
-     SchedulerError, InvalidValueError, LimitError, SettingError],
+     InvalidValueError, LimitError, SettingError],
 )
 def test_every_user_fixable_error_is_an_input_error(kind: type[Exception]) -> None:
     assert issubclass(kind, InputError) and issubclass(kind, ValueError)
@@ -72,7 +71,7 @@ def test_a_plain_value_error_is_a_programming_error_not_a_usage_error(
 def test_a_candidate_that_cannot_be_simulated_is_skipped_but_a_bug_is_not(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setattr(fitting, "physically_valid", lambda choice, fns: True)
+    monkeypatch.setattr(start_error, "physically_valid", lambda choice, fns: True)
 
     def evaluate_raising(exc: Exception) -> Any:
         def evaluate(dataset: object, choice: object, **kwargs: object) -> Any:
@@ -80,8 +79,8 @@ def test_a_candidate_that_cannot_be_simulated_is_skipped_but_a_bug_is_not(
 
         return evaluate
 
-    monkeypatch.setattr(fitting, "evaluate", evaluate_raising(ParameterError("mu_k >= mu_s")))
-    assert fitting._vector_or_none(None, None, (0.0, 0.0)) is None  # type: ignore[arg-type]
-    monkeypatch.setattr(fitting, "evaluate", evaluate_raising(ValueError("shapes (3,) (4,)")))
+    monkeypatch.setattr(start_error, "evaluate", evaluate_raising(ParameterError("mu_k >= mu_s")))
+    assert start_error.score_or_none(None, None, (0.0, 0.0)) is None  # type: ignore[arg-type]
+    monkeypatch.setattr(start_error, "evaluate", evaluate_raising(ValueError("shapes (3,) (4,)")))
     with pytest.raises(ValueError, match="shapes"):
-        fitting._vector_or_none(None, None, (0.0, 0.0))  # type: ignore[arg-type]
+        start_error.score_or_none(None, None, (0.0, 0.0))  # type: ignore[arg-type]

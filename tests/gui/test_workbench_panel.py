@@ -77,7 +77,8 @@ def test_adding_the_effect_the_ranking_finds_makes_the_error_fall(panel, qtbot, 
 def test_a_running_fit_is_cancelled_and_its_processes_end(panel, qtbot, campaign):
     panel.set_data([str(campaign)])
     panel.rank()  # every library effect: long enough to be caught running
-    qtbot.waitUntil(lambda: "fitting" in panel.log.toPlainText(), timeout=FIT_TIMEOUT_MS)
+    qtbot.waitUntil(lambda: "candidate effects" in panel.log.toPlainText(),
+                    timeout=FIT_TIMEOUT_MS)
     pid = panel.job.pid
     assert pid is not None
     worker = psutil.Process(pid)

@@ -16,6 +16,7 @@ from rigctl.gui.workbench_jobs import (
     DiagnoseView,
     ParamValue,
     RankingRow,
+    part_done,
 )
 from rigctl.gui.workbench_panel import WorkbenchPanel
 
@@ -30,7 +31,7 @@ AFTER = CandidateParams("my_waviness", 1.21, (
     ParamValue("wavelength_m", 6.02e-4, 3.1e-6, "m"),
 ), final=True)
 OFF = CandidateParams("my_drag", 3.26, (ParamValue("c_N_s_per_m", 0.0, None, "N s/m"),),
-                      final=True, note="switched off: it does not improve the fit")
+                      final=True, note="no uncertainty: the Jacobian is singular")
 
 
 @pytest.fixture
@@ -55,6 +56,13 @@ def test_the_progress_line_carries_the_parameters_both_ways():
     assert CandidateParams.from_text("  fitted wear: error 3.26") is None
     assert DURING.params[0].text() == "0.0312 ± ?"
     assert AFTER.params[2].text() == "0.000602 ± 3.1e-06 m"
+
+
+def test_the_progress_bar_follows_each_part_of_the_step():
+    assert part_done("screened wear: 3.2 (score 4.1, best at the off, 12 evaluations) "
+                     "[3/12, about 40 s left in this round]") == 0.25
+    assert part_done("fitted wear + stribeck: 5.1 -> 3.2 in 40 s [2/2]") == 1.0
+    assert math.isnan(part_done("identifying paper on 40 slip events ..."))
 
 
 def test_plugin_parameters_show_during_and_after_the_round(panel, qtbot, tmp_path):
@@ -84,7 +92,7 @@ def test_plugin_parameters_show_during_and_after_the_round(panel, qtbot, tmp_pat
     assert cells[2][2] == "0.000602 ± 3.1e-06 m"
     assert "no uncertainty yet" not in cells[0][3]
     assert cells[3][0] == "my_drag" and cells[3][2] == "0 ± ? N s/m"
-    assert "switched off" in cells[3][3]
+    assert "no uncertainty" in cells[3][3]
 
     panel.show()
     qtbot.waitExposed(panel)

@@ -56,8 +56,10 @@ def hidden_effect_diagnosis(effect: str, seed: int) -> Diagnosis:
         base = "paper"
     runs = simulate_campaign(model, PROTOCOL_FOR_EFFECT[effect], seed=seed,
                              velocity_m_s=2e-5, duration_scale=0.5)
+    # no run limit: a test's verdict must not depend on the machine's load (pytest's timeout
+    # catches a hang)
     return diagnose(prepare_dataset(runs), ModelChoice(base),
-                    candidates=(effect, *DECOYS[effect]), workers=2)
+                    candidates=(effect, *DECOYS[effect]), workers=2, max_run_s=None)
 
 
 def assert_found(effect: str, diag: Diagnosis) -> None:

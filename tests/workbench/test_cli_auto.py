@@ -1,4 +1,4 @@
-"""`model diagnose --auto` (the error falls step by step), plug-ins by file and a Dask cluster.
+"""`model diagnose --auto` (the error falls step by step), plug-ins by file, the run's time limit.
 
 The campaign hides two effects at once, so ``--auto`` has to add one, re-identify, find the other,
 add it, and then stop because nothing significant is left.
@@ -133,91 +133,6 @@ def test_a_plugin_file_takes_part_on_the_command_line(drifting_sensor, capsys):
     assert with_it["effects"] == ["force_sensor_drift"]
 
 
-@pytest.mark.slow
-def test_diagnose_on_a_local_dask_cluster_matches_local_processes(drifting_sensor, capsys):
-    distributed = pytest.importorskip("distributed")
-    data, plugin = drifting_sensor
-    argv = ["model", "diagnose", str(data), "--json", "--effect-file", str(plugin),
-            "--candidates", PLUGIN_CANDIDATES]
-    assert main([*argv, "--workers", "2"]) == 0
-    local = json.loads(capsys.readouterr().out)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
-        on_dask = json.loads(capsys.readouterr().out)
-        # the candidate fits ran on the cluster (its scheduler saw them)
-        assert "fit_candidate" in cluster.scheduler.task_prefixes
-    assert on_dask["verdict"] == local["verdict"] == "force_sensor_drift"
-    for a, b in zip(local["ranking"], on_dask["ranking"], strict=True):
-        assert a["effect"] == b["effect"]
-        assert a["error"] == pytest.approx(b["error"], rel=1e-9)
-
-
-@pytest.mark.slow
-def test_an_unreachable_scheduler_is_one_line(drifting_sensor, capsys):
-    data, _ = drifting_sensor
-    code = main(["model", "diagnose", str(data), "--candidates", "wear",
-                 "--scheduler", "tcp://127.0.0.1:9", "--timeout", "5"])
-    assert code == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "scheduler" in err
-
-
-@pytest.mark.slow
-def test_diagnose_on_a_tls_scheduler(drifting_sensor, capsys, tmp_path):
-    """A tls:// cluster takes the candidate fits with --tls-ca/--tls-cert/--tls-key; without them
-    the connection is refused in one line (plain TCP to it cannot even start)."""
-    distributed = pytest.importorskip("distributed")
-    pytest.importorskip("cryptography")
-    data, plugin = drifting_sensor
-    sec = distributed.Security.temporary()
-    pem = {}
-    for name, text in (("ca", sec.tls_ca_file), ("cert", sec.tls_client_cert),
-                       ("key", sec.tls_client_key)):
-        pem[name] = tmp_path / f"{name}.pem"
-        pem[name].write_text(text)
-    argv = ["model", "diagnose", str(data), "--json", "--effect-file", str(plugin),
-            "--candidates", "force_sensor_drift"]
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  protocol="tls", security=sec, dashboard_address=None) as cluster:
-        address = cluster.scheduler_address
-        assert address.startswith("tls://")
-        assert main([*argv, "--scheduler", address, "--timeout", "5"]) == 2
-        assert "scheduler" in capsys.readouterr().err
-        assert main([*argv, "--scheduler", address, "--tls-ca", str(pem["ca"]),
-                     "--tls-cert", str(pem["cert"]), "--tls-key", str(pem["key"])]) == 0
-        out = json.loads(capsys.readouterr().out)
-        assert "fit_candidate" in cluster.scheduler.task_prefixes
-    assert out["verdict"] == "force_sensor_drift"
-
-
-@pytest.mark.parametrize(("extra", "says"), [
-    (["--tls-ca", "{ca}"], "needs all of --tls-ca, --tls-cert and --tls-key"),
-    (["--tls-ca", "{ca}", "--tls-cert", "{ca}", "--tls-key", "{ca}"], "not a tls:// address"),
-])
-def test_tls_options_are_checked_before_any_fit(drifting_sensor, capsys, tmp_path, extra, says):
-    data, _ = drifting_sensor
-    ca = tmp_path / "ca.pem"
-    ca.write_text("x")
-    code = main(["model", "diagnose", str(data), "--candidates", "wear",
-                 "--scheduler", "tcp://127.0.0.1:9", *[e.format(ca=ca) for e in extra]])
-    assert code == 2 and says in capsys.readouterr().err
-
-
-def test_plain_tcp_to_another_host_is_warned_about(capsys):
-    import argparse
-
-    from rigctl.cli.cmd_model import scheduler_security
-
-    args = argparse.Namespace(scheduler="tcp://10.1.2.3:8786", tls_ca=None, tls_cert=None,
-                              tls_key=None)
-    assert scheduler_security(args) is None
-    assert "unauthenticated and unencrypted" in capsys.readouterr().err
-    args.scheduler = "tcp://127.0.0.1:8786"
-    assert scheduler_security(args) is None
-    assert capsys.readouterr().err == ""
-
-
 def test_max_time_ends_the_run_with_the_model_it_has_and_says_so(two_effects, capsys):
     import time
 
@@ -232,8 +147,18 @@ def test_max_time_ends_the_run_with_the_model_it_has_and_says_so(two_effects, ca
     assert took < 60.0  # the limit, one evaluation and the report; not a full run
 
 
+def test_max_time_ends_a_ranking_too(two_effects, capsys):
+    """Without --auto the ranking is one step of the same selection, under the same limit."""
+    code = main(["model", "diagnose", str(two_effects), "--candidates", CANDIDATES,
+                 "--workers", "1", "--max-time", "4", "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["time_limited"].startswith("the run's time limit ended")
+    assert out["base"].startswith("paper")
+
+
 @pytest.mark.parametrize(("extra", "says"), [
-    (["--max-time", "30"], "--max-time limits an --auto run"),
+    (["--max-time", "-1"], "--max-time must be 0"),
     (["--auto", "--max-time", "-1"], "--max-time must be 0"),
     (["--auto", "--max-time", "nan"], "--max-time must be 0"),
 ])

@@ -66,9 +66,13 @@ def test_diagnose_json_follows_the_contract_and_writes_a_report(campaign, tmp_pa
         assert isinstance(row["significant"], bool)
         for key in ("error", "error_reduction", "delta_bic"):
             assert isinstance(row[key], float), (key, row)
-    assert [r["effect"] for r in out["ranking"]] == sorted(
-        (r["effect"] for r in out["ranking"]),
-        key=lambda e: next(r["delta_bic"] for r in out["ranking"] if r["effect"] == e))
+    # the verdict's set leads; then the other fitted sets, significant first, each by delta BIC;
+    # then the sets only screened (docs/workbench.md, "JSON output")
+    rows = out["ranking"]
+    fitted = [r for r in rows if not r["explains"].startswith("screened only")]
+    assert rows[:len(fitted)] == fitted
+    assert fitted[0]["effect"] == out["verdict"]
+    assert fitted[1:] == sorted(fitted[1:], key=lambda r: (not r["significant"], r["delta_bic"]))
     assert out["verdict"] == "interface_damping"
     top = out["ranking"][0]
     assert set(top) == {"effect", "error", "error_reduction", "delta_bic", "significant",
@@ -105,27 +109,23 @@ def test_unknown_effect_and_missing_path_are_usage_errors(campaign, tmp_path, ca
     assert "unknown effect 'magic'" in capsys.readouterr().err
     assert main(["model", "diagnose", str(tmp_path / "nowhere")]) == 2
     assert "nowhere" in capsys.readouterr().err
-    # --auto's search runs on local workers: a Dask scheduler with it is refused before any fit
-    assert main(["model", "diagnose", str(campaign), "--auto", "--scheduler",
-                 "tcp://127.0.0.1:9"]) == 2
-    assert "--auto" in capsys.readouterr().err
 
 
 @pytest.mark.slow
-def test_compare_fits_its_starts_with_the_workers_asked(campaign, monkeypatch, capsys):
-    """`--workers N` reaches the base fit (its two starts on another rig's data go to N worker
-    processes, tests/workbench/test_parallel_starts.py); the default is the CPUs; 0 is refused."""
+def test_compare_searches_with_the_workers_asked(campaign, monkeypatch, capsys):
+    """`--workers N` reaches the search (N worker processes evaluate its points); the default is
+    the CPUs; 0 is refused."""
     import rigctl.workbench.compare as compare_module
     from rigctl.workbench.parallel import default_workers
 
     asked: list[int] = []
-    identify = compare_module.identify_model
+    search = compare_module.search_model
 
     def spy(dataset, choice, **kw):
         asked.append(kw.get("workers", 1))
-        return identify(dataset, choice, **kw)
+        return search(dataset, choice, **kw)
 
-    monkeypatch.setattr(compare_module, "identify_model", spy)
+    monkeypatch.setattr(compare_module, "search_model", spy)
     assert main(["model", "compare", str(campaign), "--json", "--workers", "2"]) == 0
     assert main(["model", "compare", str(campaign), "--json"]) == 0
     assert asked == [2, default_workers()]

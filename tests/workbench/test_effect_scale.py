@@ -14,8 +14,8 @@ from rigctl.model import Drive, Simulator, build_model
 from rigctl.model.noise import NoiseModel
 from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench.budget import Budget
+from rigctl.workbench.data_start import campaign_scale
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.fitting import campaign_scale
 from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import ModelChoice, with_effects
 from rigctl.workbench.screening import score_screen

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rigctl.records.dataset import prepare_dataset
-from rigctl.workbench.fitting import campaign_scale
+from rigctl.workbench.data_start import campaign_scale
 from tests.workbench.synth import LIGHT_RIG, light_rig_tlre
 
 # at 2 % damping the light slider rings at 34 Hz, decaying at 2.3 /s, into the loading ramp of

@@ -13,9 +13,10 @@ from rigctl.records.dataset import prepare_dataset
 from rigctl.records.ringing import RingFit, Ringing, campaign_ringing, fit_ring
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.data_scale import PRESET, DataScale, base_start
-from rigctl.workbench.fitting import campaign_scale, data_scaled, identify_model
+from rigctl.workbench.data_start import campaign_scale, data_scaled
 from rigctl.workbench.identify import Objective, free_params
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
 from tests.workbench.synth import sawtooth_run
 
 # a heavy slider on a soft drive: it rings at 64 Hz in stick (32 Hz on the drive spring alone
@@ -125,7 +126,7 @@ def test_a_fit_keeps_the_mass_at_the_measured_ringing(heavy_rig):
     measured frequency in every fit (identify.Objective), and the dataset says so."""
     assert heavy_rig.mass_from_ringing
     assert any("post-slip ringing resolved" in n for n in heavy_rig.notes)
-    res = identify_model(heavy_rig, ModelChoice("paper"), with_uncertainty=False)
+    res = search_model(heavy_rig, ModelChoice("paper"), with_uncertainty=False)
     v = res.choice.values
     assert "m_kg" not in res.free
     assert v["m_kg"] == pytest.approx(

@@ -14,11 +14,11 @@ from rigctl.records.dataset import Dataset, prepare_dataset
 from rigctl.workbench import selection as sel
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
-from rigctl.workbench.fitting import error_or_inf
 from rigctl.workbench.identify import FitResult, fn_range, physically_valid
 from rigctl.workbench.model_choice import ModelChoice, with_effects
 from rigctl.workbench.screening import base_basis, profiled_cost, score_screen, screened_error
 from rigctl.workbench.search import search_model
+from rigctl.workbench.start_error import error_or_inf
 from tests.workbench.hidden import DECOYS, MAGNITUDE, TEST_BASE, scaled_values
 
 SHORT_FIT_EVALUATIONS = 60

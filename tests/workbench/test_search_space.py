@@ -4,18 +4,22 @@ worse than that fit (the start with the effect off is one of its points)."""
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import pytest
 
 from rigctl.model import build_model
 from rigctl.model.effects import LIBRARY
 from rigctl.records.dataset import Dataset, prepare_dataset
+from rigctl.records.rig_description import RigDescription
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.campaigns import PROTOCOL_FOR_EFFECT, simulate_campaign
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.evaluate import evaluate
 from rigctl.workbench.model_choice import ModelChoice
 from rigctl.workbench.search import added_effects, search_model
-from rigctl.workbench.search_space import build_space
+from rigctl.workbench.search_space import MASS_LINE_STEP_DECADES, build_space
 from rigctl.workbench.selection import with_effects
 from tests.workbench.hidden import MAGNITUDE, TEST_BASE, scaled_values
 
@@ -92,3 +96,26 @@ def test_a_search_from_a_model_with_fitted_effects_never_ends_worse_than_that_mo
     second = search_model(dataset, with_effects(first.choice, ("presliding",)),
                           budget=Budget(max_evaluations=60), workers=0, with_uncertainty=False)
     assert second.error <= first.error * (1.0 + 1e-9)
+
+
+def test_the_mass_line_steps_half_decades_over_the_plausible_mass_at_the_damping_ratio(dataset):
+    choice = ModelChoice("paper")
+    unstated = replace(dataset, rig=RigDescription())  # another lab's record: no mass stated
+    space = build_space(unstated, choice, choice, False)
+    names = [fp.name for fp in space.free]
+    im, ic = names.index("m_kg"), names.index("c0_N_s_per_m")
+    x0 = space.vector(choice)
+    line = space.mass_line(x0)
+    lo, hi = space.spread[im]
+    steps = sorted(round((x[im] - x0[im]) / math.log(10.0) / MASS_LINE_STEP_DECADES, 9)
+                   for x in line)
+    inside = [k for k in range(-8, 9) if k != 0
+              and lo - 1e-9 <= x0[im] + k * MASS_LINE_STEP_DECADES * math.log(10.0) <= hi + 1e-9]
+    assert steps == inside and len(inside) >= 6  # every half decade of the interval, x0 apart
+    for x in line:  # the damping at x0's damping ratio: ln C0 moves by half of ln M
+        assert x[ic] - x0[ic] == pytest.approx(0.5 * (x[im] - x0[im]))
+        others = [j for j in range(space.dim) if j not in (im, ic)]
+        assert (x[others] == x0[others]).all()
+    stated = build_space(dataset, choice, choice, False)  # the simulated rig states its mass
+    assert "m_kg" not in [fp.name for fp in stated.free]
+    assert stated.mass_line(stated.vector(choice)) == []

@@ -340,6 +340,29 @@ def test_each_full_fit_says_how_long_it_took():
     assert fitted and all(" in 42 s [" in m for m in fitted)
 
 
+def test_the_ranking_is_one_step_that_adds_nothing():
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 8.0, S("a", "b"): 3.9})
+    base = t.fit(DATASET, ModelChoice("paper"))
+    out = sel.rank_effects(DATASET, base, list(POOL), fit=t.fit,
+                           screen=sel.by_short_fits(t.screen))
+    assert out.steps == [] and out.final is base  # nothing added, nothing removed
+    assert len(out.rounds) == 1
+    rnd = out.rounds[0]
+    assert rnd.chosen is not None and rnd.chosen.effects == ("a",)  # the verdict
+    assert {t_.effects for t_ in rnd.trials} >= {("a",)}
+    assert {s.effects for s in rnd.screens} >= {(p,) for p in POOL}  # every candidate screened
+
+
+def test_the_ranking_after_the_model_s_refit_is_the_refitted_model_s():
+    t = Unfinished({S(): 10.0, S("a"): 6.0, S("b"): 6.2, S("a", "b"): 6.0}, finished=6.0)
+    base = t.fit(DATASET, ModelChoice("paper"))
+    out = sel.rank_effects(DATASET, base, list(POOL), fit=t.fit,
+                           screen=sel.by_short_fits(t.screen), error_of=t.error_of)
+    assert [s.kind for s in out.steps] == ["refit"]
+    assert len(out.rounds) == 1 and out.rounds[0].model is out.final
+    assert out.final.error == 6.0 and out.rounds[0].chosen is None
+
+
 def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
     # the pair's fit found values at which `a` alone scores 2.05, where a's own fit stopped at 5:
     # the pair's gain over `a` was a's unfinished fit, not `b`

@@ -15,9 +15,9 @@ from rigctl.model.simulator import SlipBudgetError
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench import evaluate as ev
 from rigctl.workbench.campaigns import simulate_campaign
-from rigctl.workbench.fitting import error_or_inf
 from rigctl.workbench.identify import Objective, fn_range, free_params
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.start_error import error_or_inf
 
 
 @pytest.fixture(scope="module")

@@ -1,17 +1,16 @@
-"""Of the two starts on another rig's data, a fit whose model misses most slips is never kept over
-one that makes them, whatever their errors (the no-slip trap, identification.md, "Starting values from
-the data").
+"""A search on another rig's data never answers with a model that misses most measured slips
+while one that makes them exists, whatever their errors (the no-slip trap, identification.md,
+"Starting values from the data").
 
 The rig is one of the held-out benchmark's (an 11 N contact, a drive 6 times stiffer than this
-rig's, an interface 130 times stiffer, friction falling with the load): from this rig's preset the
-model makes hardly any of the measured slips, each missing slip costs a fixed z, and that fit
-cannot move; it ended at E = 7.3 and beat the data-scale fit (19.9: the paper's model cannot
-follow the hidden load dependence), so the preset was kept unmoved and every candidate effect
-was then fitted around it.
+rig's, an interface 130 times stiffer, friction rising with the load): from this rig's preset the
+model makes hardly any of the measured slips, and each missing slip costs a fixed z, so the
+preset's error is flat around it; a fit left there scores well and describes nothing.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from rigctl.model import Drive, Simulator, build_model
@@ -19,9 +18,9 @@ from rigctl.model.noise import NoiseModel
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.campaigns import simulate_campaign
 from rigctl.workbench.evaluate import evaluate
-from rigctl.workbench.fitting import identify_model
 from rigctl.workbench.identify import misses_most_slips
 from rigctl.workbench.model_choice import ModelChoice
+from rigctl.workbench.search import search_model
 
 pytestmark = pytest.mark.slow  # full fits or diagnoses: the slow tier (make test-all)
 
@@ -59,8 +58,12 @@ def test_the_preset_misses_most_slips_here(dataset):
 
 
 def test_the_fit_is_the_one_that_makes_the_slips(dataset):
-    res = identify_model(dataset, ModelChoice("paper"), with_uncertainty=False)
+    res = search_model(dataset, ModelChoice("paper"), with_uncertainty=False)
     assert not res.misses_most_slips
-    # at the data's scale (this rig's preset: mu_s 0.15, K0 1.475e6 N/m)
-    assert res.choice.values["mu_s"] == pytest.approx(RIG["mu_s"], rel=0.05)
+    # at the data's scale (this rig's preset: K0 1.475e6 N/m, 6 times softer)
     assert res.choice.values["k0_N_per_m"] == pytest.approx(RIG["k0_N_per_m"], rel=0.2)
+    # the static level among the runs' own peak levels: the friction rises with the load here
+    # (0.11-0.16 over the sweep), which the paper's model fits with one mu_s
+    levels = [float(np.nanmedian(r.events.features["peak_N"]) / np.median(r.drive.fn_N))
+              for r in dataset.runs]
+    assert min(levels) <= res.choice.values["mu_s"] <= max(levels), (res.choice.values, levels)
