@@ -45,11 +45,14 @@ def _ratio(meas: float, model: float) -> float | None:
     return None
 
 
-def initial_guess(dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam]) -> dict[str, float]:
+def initial_guess(dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam],
+                  bounded: bool = False, deadline: float | None = None) -> dict[str, float]:
+    """The rescaled values (module docstring); ``bounded`` and ``deadline`` bound the model's run
+    as :func:`~rigctl.workbench.evaluate.evaluate`'s do."""
     values = {p.name: p.value for p in choice.parameter_table()}
     names = {fp.name for fp in free}
     meas = [r.events for r in dataset.runs]
-    model = evaluate(dataset, choice).events
+    model = evaluate(dataset, choice, bounded=bounded, deadline=deadline).events
     new = dict(values)
     r_peak = _ratio(_median(meas, "peak_N", True, True), _median(model, "peak_N", True, True))
     r_drop = _ratio(_median(meas, "drop_N", True, True), _median(model, "drop_N", True, True))

@@ -28,6 +28,14 @@ re-fitted *linearly*, from a handful of evaluations of the model with the set ad
    the plausible ranges of the set's coordinates (:class:`~rigctl.workbench.search_space.
    SearchSpace`, the same ranges a full fit spreads its starts over), the base at the model's
    values, each evaluated and profiled over the base.
+4. **The same points with the base levels re-read.** An effect at a finite size can shift the
+   levels the base fit set far beyond what the linear profile follows (rate-and-state aging adds
+   b ln(1 + theta V_ref / D_c) to every friction level: a few per cent of mu, tens of scatter
+   units, and the slips' timing moves with it). So each of those points that can be run is also
+   evaluated with the base's friction levels and stiffnesses re-read from the data at the
+   effect's values (the ratio guess of :mod:`rigctl.workbench.guess`, one run of the model there,
+   in a worker, :meth:`~rigctl.workbench.search_pool.EvaluationPool.reread`), as the data-scale
+   start reads them for the model itself; profiled the same way.
 
 A set's screened error is the model's error scaled by the lowest profiled cost over its points
 *relative to the profiled cost of the off point* (the model itself, its base re-fitted linearly):
@@ -37,8 +45,9 @@ effect, and where the model's fit is at its least-squares minimum it is zero (J_
 Where it is not (a fit ended by its budget, a residual rough at a finite difference's scale), the
 linear re-fit predicts a gain at every point alike, which the full fits then do not find; counted
 as the set's gain it would make every set look significant. Every screened cost is that of an
-evaluated residual; only the base's re-fit is linear. Costs: 2 + SPREAD_POINTS + about 1-3
-evaluations per on-coordinate + 1 per set, against a short search's tens. The point where it
+evaluated residual; only the base's re-fit is linear. Costs: about 3 + 3 SPREAD_POINTS + 1-3
+evaluations per on-coordinate per set (each re-read is one run and its point one more): 30-35 for
+the library's effects, a little over half of a 60-evaluation short search. The point where it
 was found, with the base moved by the damped Gauss-Newton step the profile assumes, is the set's
 start for its full fit (:attr:`Screened.start`).
 """
@@ -61,7 +70,7 @@ from rigctl.workbench.model_choice import ModelChoice, effect_of, with_effects
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.search import SearchState
-from rigctl.workbench.search_pool import OK, EvaluationPool
+from rigctl.workbench.search_pool import FAILED, OK, EvaluationPool
 from rigctl.workbench.search_space import (
     SearchSpace,
     build_space,
@@ -208,6 +217,16 @@ class _SetScreen:
             found += [(profiled_cost(o.vector, Q), label, x, o.vector)
                       for (label, x), o in zip(labelled, outcomes[1:], strict=True)
                       if o.status == OK and o.vector is not None]
+            runnable = [(label, x) for (label, x), o in zip(labelled, outcomes[1:], strict=True)
+                        if o.status != FAILED]
+            reread = [(f"{label}, levels re-read", self._with_base(x, values))
+                      for (label, x), values in zip(runnable, pool.reread(
+                          [self.space.point(x) for _, x in runnable]), strict=True)
+                      if values]
+            found += [(profiled_cost(o.vector, Q), label, x, o.vector)
+                      for (label, x), o in zip(reread, search.evaluate([x for _, x in reread]),
+                                               strict=True)
+                      if o.status == OK and o.vector is not None]
             score = 0.0
             if self.on:
                 search.cols = self.on
@@ -238,6 +257,16 @@ class _SetScreen:
             x[i] += d
         x = np.clip(x, self.space.lower, self.space.upper)
         return self.choice.with_values(self.space.values(x))
+
+    def _with_base(self, x: FloatArray, values: dict[str, float]) -> FloatArray:
+        """``x`` with the base coordinates set to ``values`` (within their bounds)."""
+        x = x.copy()
+        for i in self.base:
+            if i < len(self.space.free):
+                fp = self.space.free[i]
+                if fp.name in values and math.isfinite(values[fp.name]):
+                    x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
+        return np.clip(x, self.space.lower, self.space.upper)
 
     def _typical_point(self) -> list[FloatArray]:
         """The set at its typical size (:func:`~rigctl.workbench.search_space.typical_point`),

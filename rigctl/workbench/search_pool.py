@@ -60,6 +60,7 @@ from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.evaluate import evaluate, model_drive
+from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
     FitResult,
     FreeParam,
@@ -167,6 +168,20 @@ class _Evaluator:
         return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec,
                        time.monotonic() - t0)
 
+    def reread(self, point: Point) -> dict[str, float] | None:
+        """The base levels and stiffnesses re-read from the data at ``point`` (the ratio guess of
+        :mod:`rigctl.workbench.guess`: one run of the model there, within the point's time
+        limit); None where the model cannot be run there."""
+        obj = Objective(self.dataset, self.choice, self.free)
+        choice = self.choice.with_values(obj.values(point.u))
+        if point.n_elements is not None:
+            choice = choice.with_values({"n_elements": point.n_elements})
+        deadline = None if point.time_limit_s is None else time.monotonic() + point.time_limit_s
+        try:
+            return initial_guess(self.dataset, choice, self.free, bounded=True, deadline=deadline)
+        except (SimulationError, ParameterError):
+            return None
+
     def finish(self, task: FinishTask) -> FitResult:
         ev = evaluate(self.dataset, task.choice)
         result = FitResult(
@@ -196,6 +211,11 @@ def _init_worker(dataset_pickle: bytes, choice: ModelChoice, free: tuple[FreePar
 def _evaluate_in_worker(point: Point) -> Outcome:
     evaluator: _Evaluator = _WORKER["evaluator"]
     return evaluator(point)
+
+
+def _reread_in_worker(point: Point) -> dict[str, float] | None:
+    evaluator: _Evaluator = _WORKER["evaluator"]
+    return evaluator.reread(point)
 
 
 def _finish_in_worker(task: FinishTask) -> FitResult:
@@ -293,6 +313,20 @@ class EvaluationPool:
                 self._times.setdefault(g, []).append(o.elapsed_s)
         self.n_timed_out += sum(1 for o in out if o.timed_out)
         return out
+
+    def reread(self, points: Sequence[Point]) -> list[dict[str, float] | None]:
+        """Each point's base levels re-read from the data (:meth:`_Evaluator.reread`, None where
+        its model cannot be run), in order; each counts one evaluation and runs within its path's
+        time limit."""
+        points = [replace(p, time_limit_s=self.time_limit_s(self.general_path(p)))
+                  for p in points]
+        self.budget.check()
+        if self._local is not None:
+            out = [self._local.reread(p) for p in points]
+        else:
+            out = self._wait(self._pool.map_async(_reread_in_worker, points, chunksize=1))
+        self.budget.spend(len(out))
+        return list(out)
 
     def finish(self, task: FinishTask) -> FitResult:
         """The answer of ``task`` (and its uncertainties); its evaluations count in the budget."""

@@ -137,5 +137,5 @@ def test_the_screen_sees_an_effect_at_its_typical_size():
     e_base = evaluate(data, base).score.error
     model = FitResult(base, e_base, {}, ())
     (s,) = score_screen(data, model, [("load_dependent_friction",)], workers=0)
-    assert s.best_at == "typical size", s
+    assert s.best_at.startswith("typical size"), s  # as drawn, or with the levels re-read
     assert s.error < 0.5 * e_base, (s, e_base)

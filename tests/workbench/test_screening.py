@@ -77,8 +77,10 @@ def test_the_hidden_effect_screens_first_at_a_fraction_of_a_short_fit():
     out = score_screen(dataset, base, sets, workers=1)
     assert out[0].effects == (hidden,), out
     assert out[0].error < 0.7 * base.error, out
-    # the first set pays for the base's Jacobian too; every other costs a third of a short fit
-    assert all(s.evaluations < SHORT_FIT_EVALUATIONS / 3 for s in out if s.effects != sets[0])
+    # the first set pays for the base's Jacobian too; every other costs 0.6 of a short fit at
+    # most (its points twice: as drawn, and with the base levels re-read there, each re-read a
+    # run of its own)
+    assert all(s.evaluations <= 0.6 * SHORT_FIT_EVALUATIONS for s in out if s.effects != sets[0])
     # a set that helps nowhere screens at the model's own error, re-fitted linearly
     assert all(s.error <= base.error * (1 + 1e-9) for s in out)
     # the best point is a start for the set's full fit, which cannot end worse than it
