@@ -72,6 +72,8 @@ def test_spring_slider_model_enters_the_record_loaded(ens_comparison) -> None:  
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # the search takes about 3.5 min here on a quiet machine (a record of
+# slow, chattering models: docs/performance.md); beside another test on the 2 cores, over 5
 def test_tribometer_without_probes_is_fitted_at_its_own_scale() -> None:
     runs = load_runs([TRIBOMETER])
     cmp = compare(runs, PAPER)
