@@ -260,13 +260,8 @@ class _SetScreen:
 
     def _with_base(self, x: FloatArray, values: dict[str, float]) -> FloatArray:
         """``x`` with the base coordinates set to ``values`` (within their bounds)."""
-        x = x.copy()
-        for i in self.base:
-            if i < len(self.space.free):
-                fp = self.space.free[i]
-                if fp.name in values and math.isfinite(values[fp.name]):
-                    x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
-        return np.clip(x, self.space.lower, self.space.upper)
+        return np.clip(self.space.with_values(x, values, self.base), self.space.lower,
+                       self.space.upper)
 
     def _typical_point(self) -> list[FloatArray]:
         """The set at its typical size (:func:`~rigctl.workbench.search_space.typical_point`),

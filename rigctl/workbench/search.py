@@ -454,11 +454,7 @@ class SearchState:
             self.budget.spend(1)
         if not values:
             return None
-        x = self.x_best.copy()
-        for i, fp in enumerate(self.space.free):
-            if fp.name in values and math.isfinite(values[fp.name]):
-                x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
-        return x
+        return self.space.with_values(self.x_best, values)
 
     def drop_shape_start(self, choice: ModelChoice) -> FloatArray | None:
         """The best start with the mass the drops' shape states (:mod:`rigctl.workbench.

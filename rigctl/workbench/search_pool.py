@@ -153,12 +153,7 @@ class _Evaluator:
     def __call__(self, point: Point) -> Outcome:
         t0 = time.monotonic()
         try:
-            obj = self._objectives.get(point.n_elements)
-            if obj is None:
-                choice = self.choice if point.n_elements is None else \
-                    self.choice.with_values({"n_elements": point.n_elements})
-                obj = self._objectives[point.n_elements] = Objective(self.dataset, choice,
-                                                                     self.free)
+            obj = self._objective(point.n_elements)
             obj.time_limit_s = point.time_limit_s
             vec = obj(point.u)
         except (SimulationError, ParameterError):
@@ -168,14 +163,21 @@ class _Evaluator:
         return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec,
                        time.monotonic() - t0)
 
+    def _objective(self, n_elements: int | None) -> Objective:
+        """The objective of the model with ``n_elements`` elements (None: its own), made once."""
+        obj = self._objectives.get(n_elements)
+        if obj is None:
+            choice = self.choice if n_elements is None else \
+                self.choice.with_values({"n_elements": n_elements})
+            obj = self._objectives[n_elements] = Objective(self.dataset, choice, self.free)
+        return obj
+
     def reread(self, point: Point) -> dict[str, float] | None:
         """The base levels and stiffnesses re-read from the data at ``point`` (the ratio guess of
         :mod:`rigctl.workbench.guess`: one run of the model there, within the point's time
         limit); None where the model cannot be run there."""
-        obj = Objective(self.dataset, self.choice, self.free)
-        choice = self.choice.with_values(obj.values(point.u))
-        if point.n_elements is not None:
-            choice = choice.with_values({"n_elements": point.n_elements})
+        obj = self._objective(point.n_elements)
+        choice = obj.choice.with_values(obj.values(point.u))
         deadline = None if point.time_limit_s is None else time.monotonic() + point.time_limit_s
         try:
             return initial_guess(self.dataset, choice, self.free, bounded=True, deadline=deadline)

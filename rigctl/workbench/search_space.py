@@ -137,6 +137,18 @@ class SearchSpace:
                 x[i] += a * (values[j] - x0[j])
         return x
 
+    def with_values(self, x: FloatArray, values: Mapping[str, float],
+                    coords: Collection[int] | None = None) -> FloatArray:
+        """``x`` with its coordinates (those of ``coords`` only, where given) set to ``values``
+        by parameter name, each within its bounds; names ``values`` lacks or holds no finite
+        value of are left."""
+        x = np.array(x, dtype=np.float64)
+        for i, fp in enumerate(self.free):
+            if (coords is None or i in coords) and fp.name in values \
+                    and math.isfinite(values[fp.name]):
+                x[i] = fp.to_u(min(max(values[fp.name], fp.lower), fp.upper))
+        return x
+
     def mass_line(self, x0: FloatArray) -> list[FloatArray]:
         """``x0`` with the mass at every MASS_LINE_STEP_DECADES over its plausible interval
         (:attr:`spread`), the drive damping moved with it at ``x0``'s damping ratio
