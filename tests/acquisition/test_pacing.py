@@ -39,20 +39,24 @@ def test_sim_wire_at_speed_n_keeps_the_recorded_forces_current():
             stall, last = 0.0, (h0, math.nan)  # the recorder's longest host gap between samples
             while time.monotonic() - h0 < 1.5:
                 time.sleep(0.01)
+                # the rig's time is read before the data's: both only move forward, so a pause of
+                # this thread between the two reads can only shrink the lag measured, never grow it
+                t_rig = vr.t_s
                 t_data, start = acq.t_s, node.stream_start_s
                 now = time.monotonic()
                 if t_data != last[1]:
                     stall, last = max(stall, now - last[0]), (now, t_data)
                 if start is not None and not math.isnan(t_data):
-                    # rig time now minus the rig time of the newest recorded sample
-                    worst = max(worst, vr.t_s - (start + t_data))
+                    # rig time minus the rig time of the newest recorded sample
+                    worst = max(worst, t_rig - (start + t_data))
             elapsed, advanced = time.monotonic() - h0, vr.t_s - t0
         finally:
             acq.stop()
     # the pacer's bound: max_lag_s plus one step ahead; where the recorder itself stalled past
     # STALL_S (a starved thread on a loaded machine), the rig ran on at real time for the rest of
-    # the stall, by design; 0.3 s of rig time as headroom for the host time between this loop's
-    # reads of the data and of the rig. A rig running free falls seconds behind (the regression).
+    # the stall, by design; 0.3 s of rig time as headroom for the pacer's own reaction to a new
+    # sample (its thread can be starved too). A rig running free falls seconds behind (the
+    # regression).
     pacer = rig.pacer
     bound = (pacer.max_lag_s + pacer.step_s if pacer is not None else 0.3) \
         + max(0.0, stall - STALL_S) + 0.3
