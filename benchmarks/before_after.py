@@ -75,6 +75,13 @@ HEADLINES: dict[str, list[Figure]] = {
         Figure("resident memory growth MB", "rss_growth_mb", False),
         _PROCESS,
     ],
+    "compare": [
+        Figure("compare wall s", "compare_wall_s", False),
+        Figure("compare in evaluations", "compare_in_evaluations", False),
+        Figure("one evaluation s", "evaluation_s", False),
+        Figure("error E", "error", False),
+        _PROCESS,
+    ],
 }
 """The figures compared for each module; a module not named here is compared by its CPU seconds."""
 

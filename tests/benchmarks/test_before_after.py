@@ -8,7 +8,10 @@ from dataclasses import asdict
 import pytest
 
 from benchmarks.before_after import HEADLINES, Figure, compare, figure, format_rows, parse_output
+from benchmarks.bench_compare import format_table, report
 from benchmarks.bench_live_view import Report
+from rigctl.workbench.identify import FitResult
+from rigctl.workbench.model_choice import ModelChoice
 
 RATE = Figure("rate", "a.rate", True)
 LAG = Figure("lag", "rig-1x.lag_s", False)
@@ -52,3 +55,12 @@ def test_format_rows_prints_medians_and_the_ratio_range() -> None:
 def test_the_live_view_figures_name_fields_of_its_report() -> None:
     doc = json.loads(json.dumps({**asdict(Report()), "rss_growth_mb": 0.0, "_process": {"cpu_s": 1.0}}))
     assert all(figure(doc, f.path) is not None for f in HEADLINES["live_view"])
+
+
+def test_the_compare_figures_name_fields_of_its_report() -> None:
+    fit = FitResult(ModelChoice("paper"), 3.5, {}, ("mu_s",), n_evaluations=412)
+    res = report("k168_v42_60s.csv", 120001, 36, 2, 0.05, 40.0, 70.0, fit)
+    doc = json.loads(json.dumps({**res, "_process": {"cpu_s": 1.0}}))
+    assert all(figure(doc, f.path) is not None for f in HEADLINES["compare"])
+    assert doc["compare_in_evaluations"] == 800.0
+    assert "NOT met" in format_table(res)  # 40 s against the 30 s target
