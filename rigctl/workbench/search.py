@@ -126,6 +126,9 @@ RESOLVED_STEP = FD_CHANGE_MIN / FD_CHANGE_MAX
 step that moved the residual by FD_CHANGE_MIN-FD_CHANGE_MAX scatter units): over a tenth of it
 even the steepest column moves the residual by FD_CHANGE_MIN at most, the jitter floor below
 which identify's step rule does not trust a change, so a shorter step cannot be judged."""
+RESTART_SEED_STRIDE = 7919
+"""A restart's seed is the search's plus this many times its number (a prime: the passes' Sobol
+scrambles and CMA-ES samples are independent draws)."""
 METRIC_QUANTILE = 0.25
 """CMA-ES's initial standard deviation along each direction is this fraction of the interval where
 the optimum is expected (Hansen 2016, appendix B: sigma0 about a quarter of the search interval)."""
@@ -143,8 +146,15 @@ def search_model(
     starts: Sequence[ModelChoice] = (),
     cancel: threading.Event | None = None,
     max_wall_s: float | None = None,
+    restarts: int = 0,
 ) -> FitResult:
     """Identify ``choice`` on ``dataset`` by the one search (module docstring).
+
+    ``restarts``: at most this many further passes (:data:`RESTART_SEED_STRIDE`), each from
+    the same given starts with its own Sobol starts and CMA-ES samples, the best pass the
+    answer. With the default budget each pass has the default cap of its own; a pass is begun
+    only while the budget left (its evaluations, and its seconds with ``max_wall_s``) pays for
+    one like the first.
 
     ``starts``: more starts, the same model at other values (a screen's best point of the
     effects being added, :class:`~rigctl.workbench.screening.Screened`), ranked with the others.
@@ -184,9 +194,11 @@ def search_model(
     if max_wall_s is not None and budget is not None:
         raise ValueError("max_wall_s limits the default budget; with a budget given, set its "
                          "max_wall_s instead")
+    per_pass = None  # the default budget is a cap per pass; a budget given is all there is
     if budget is None:
         budget = default_budget(space.dim)
         budget.max_wall_s = max_wall_s
+        per_pass = budget.max_evaluations
     if budget.progress is None:
         budget.progress = progress
     if cancel is not None:
@@ -200,9 +212,25 @@ def search_model(
         search.metric()
         search.cma()
         search.polish()
-        result = search.finish(choice)
+        best, first = search, budget.used
+        for k in range(1, restarts + 1):
+            if per_pass is not None and budget.max_evaluations is not None:
+                budget.max_evaluations = budget.used + per_pass
+            if search.time_limited or budget.evaluations_left() - search.reserve() < first:
+                break  # a pass costs about what the first did: one that cannot end is not begun
+            search = search.restarted(seed + RESTART_SEED_STRIDE * k)
+            search.metric()
+            search.cma()
+            search.polish()
+            best.stages.append(f"restart {k}: " + ", ".join(search.stages)
+                               + f", |r|^2 {search.cost_best:.4g}")
+            if search.cost_best < best.cost_best - TOL_COST:
+                search.stages = [*best.stages, f"restart {k} kept"]
+                best = search
+        result = best.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
-                   cpu_s=time.process_time() - c0, time_limited=search.time_limited,
+                   cpu_s=time.process_time() - c0,
+                   time_limited=best.time_limited or search.time_limited,
                    n_timed_out=pool.n_timed_out)
 
 
@@ -281,6 +309,8 @@ class SearchState:
         """What each stage spent, for the result's message."""
         self.start_points: list[tuple[FloatArray, FloatArray]] = []
         """The starts that can be run, and their residual vectors."""
+        self.given: list[tuple[FloatArray, Outcome]] = []
+        """The given (not random) starts as evaluated: a restart reuses them."""
 
     def _stopped_on_budget(self) -> None:
         """A stage stops because the budget left would not pay for its next step: where the
@@ -293,6 +323,11 @@ class SearchState:
         """Evaluate ``xs`` (clipped to the bounds) and keep the best point seen."""
         xs = [np.clip(x, self.space.lower, self.space.upper) for x in xs]
         outcomes: list[Outcome] = self.pool.evaluate([self.space.point(x) for x in xs])
+        self._take(xs, outcomes)
+        return outcomes
+
+    def _take(self, xs: list[FloatArray], outcomes: list[Outcome]) -> None:
+        """Keep the best of evaluated points ``xs`` (within the bounds)."""
         if self.best is None and any(o.status == OK for o in outcomes):
             first = next(o.cost for o in outcomes if o.status == OK)
             self.failed_cost = max(FAILED_RESIDUAL, FAILED_FACTOR * math.sqrt(first))**2
@@ -303,7 +338,6 @@ class SearchState:
             f = self.ranked_cost(o)
             if self.best_any is None or f < self.best_any[0]:
                 self.best_any = (f, np.array(x), o.vector)
-        return outcomes
 
     def ranked_cost(self, o: Outcome) -> float:
         """|r|^2 where the model makes the slips; after all of those the points that miss most
@@ -316,8 +350,14 @@ class SearchState:
         return 3.0 * self.failed_cost
 
     def rank_starts(self, xs: list[FloatArray]) -> None:
-        """Evaluate starts, keeping those that can be run, with their residuals."""
-        for x, o in zip(xs, self.evaluate(xs), strict=True):
+        """Evaluate given (not random) starts, keeping those that can be run, with their
+        residuals; every pass of the search shares them (:meth:`restarted`)."""
+        outcomes = self.evaluate(xs)
+        self.given += list(zip(xs, outcomes, strict=True))
+        self._keep_starts(xs, outcomes)
+
+    def _keep_starts(self, xs: list[FloatArray], outcomes: list[Outcome]) -> None:
+        for x, o in zip(xs, outcomes, strict=True):
             if o.status != FAILED and o.vector is not None:
                 self.start_points.append((np.clip(x, self.space.lower, self.space.upper),
                                           o.vector))
@@ -431,11 +471,38 @@ class SearchState:
                 if off.tobytes() not in seen:
                     seen.add(off.tobytes())
                     points.append(off)
-            points += self.space.sobol_points(x0, sorted(self.space.spread),
-                                              popsize(self.space.dim), self.seed)
-            self.rank_starts(points)
+            self.spread_starts(x0, points)
         self.stages.append(f"starts {self.budget.used - used}")
         self.budget.report(f"starts: {self.budget.used} evaluated")
+
+    def spread_starts(self, x0: FloatArray, given: Sequence[FloatArray] = ()) -> None:
+        """From ``x0``, Sobol points (this pass's seed) over the plausible ranges of the
+        coordinates whose start is a guess, evaluated in one batch with more ``given`` starts."""
+        sobol = self.space.sobol_points(x0, sorted(self.space.spread), popsize(self.space.dim),
+                                        self.seed)
+        xs = [*given, *sobol]
+        outcomes = self.evaluate(xs)
+        self.given += list(zip(given, outcomes, strict=False))
+        self._keep_starts(xs, outcomes)
+
+    def restarted(self, seed: int) -> SearchState:
+        """Another pass of the search (:data:`RESTARTS`): a state with the given starts as this
+        one evaluated them (not evaluated again) and this one's finite-difference steps, drawing
+        its own Sobol starts and CMA-ES samples from ``seed``."""
+        other = SearchState(self.space, self.pool, self.budget, seed, self.with_uncertainty)
+        other.failed_cost = self.failed_cost
+        other.steps = dict(self.steps)
+        other.jac_evaluations, other.jac_columns = self.jac_evaluations, self.jac_columns
+        xs = [x for x, _ in self.given]
+        outcomes = [o for _, o in self.given]
+        other.given = list(self.given)
+        other._take(xs, outcomes)
+        other._keep_starts(xs, outcomes)
+        used = self.budget.used
+        if self.space.spread:
+            other.spread_starts(other.x_best)
+        other.stages.append(f"starts {self.budget.used - used}")
+        return other
 
     def ratio_guess(self, choice: ModelChoice) -> FloatArray | None:
         """The ratio guess of :mod:`rigctl.workbench.guess` from the best start: each level and
