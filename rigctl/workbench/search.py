@@ -42,6 +42,10 @@
    parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
    than the scatter or a trial step is shorter than the residual resolves; then the answer's
    uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`).
+6. **Restarts** (``restarts``, where a caller asks for them): further passes of stages 2-5 from the
+   same given starts with their own random draws (Sobol starts, CMA-ES samples), begun while the
+   budget pays for one like the first; the best pass is the answer. A pass is one random draw,
+   and on a multimodal objective two draws can end in different local minima.
 
 The population is evaluated in parallel worker processes holding the dataset once
 (:mod:`rigctl.workbench.search_pool`). One :class:`~rigctl.workbench.budget.Budget` bounds
@@ -486,7 +490,8 @@ class SearchState:
         self._keep_starts(xs, outcomes)
 
     def restarted(self, seed: int) -> SearchState:
-        """Another pass of the search (:data:`RESTARTS`): a state with the given starts as this
+        """Another pass of the search (:func:`search_model`'s ``restarts``): a state with the
+        given starts as this
         one evaluated them (not evaluated again) and this one's finite-difference steps, drawing
         its own Sobol starts and CMA-ES samples from ``seed``."""
         other = SearchState(self.space, self.pool, self.budget, seed, self.with_uncertainty)
