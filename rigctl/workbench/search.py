@@ -491,9 +491,8 @@ class SearchState:
 
     def restarted(self, seed: int) -> SearchState:
         """Another pass of the search (:func:`search_model`'s ``restarts``): a state with the
-        given starts as this
-        one evaluated them (not evaluated again) and this one's finite-difference steps, drawing
-        its own Sobol starts and CMA-ES samples from ``seed``."""
+        given starts as this one evaluated them (not evaluated again) and this one's
+        finite-difference steps, drawing its own Sobol starts and CMA-ES samples from ``seed``."""
         other = SearchState(self.space, self.pool, self.budget, seed, self.with_uncertainty)
         other.failed_cost = self.failed_cost
         other.steps = dict(self.steps)
