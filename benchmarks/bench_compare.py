@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks.bench_other_rigs import peak_rss_mb
 from rigctl.io.load import load_runs
 from rigctl.records.dataset import prepare_dataset
 from rigctl.workbench.compare import compare
@@ -41,13 +42,6 @@ RECORD = (Path(__file__).resolve().parent.parent / "tests" / "data" / "real"
 TARGET_WALL_S = 30.0
 """Issue 34's target for ``compare`` of a 60 s record at 2 kHz on the 2-core machine."""
 EVALUATION_REPEATS = 3
-
-
-def _peak_rss_mb() -> dict[str, float]:
-    """Peak resident memory of this process and of its largest reaped child (the workers), MB."""
-    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-    return {"parent": round(own, 1), "largest_worker": round(children, 1)}
 
 
 def compare_benchmark(record: Path, workers: int) -> dict[str, Any]:
@@ -82,7 +76,7 @@ def report(record: str, samples: int, slips: int, workers: int, t_eval: float, w
         "compare_in_evaluations": round(wall / t_eval, 1),
         "evaluations": fit.n_evaluations, "error": round(fit.error, 4),
         "time_limited": fit.time_limited, "message": fit.message,
-        "target_wall_s": TARGET_WALL_S, "peak_rss_mb": _peak_rss_mb(),
+        "target_wall_s": TARGET_WALL_S, "peak_rss_mb": peak_rss_mb(),
     }
 
 

@@ -213,9 +213,7 @@ def search_model(
         typical = typical_point(dataset, choice, added)
         search.starts([choice, *([scaled] if scaled is not None else []),
                        *([typical] if typical is not None else []), *starts])
-        search.metric()
-        search.cma()
-        search.polish()
+        search.descend()
         best, first = search, budget.used
         for k in range(1, restarts + 1):
             if per_pass is not None and budget.max_evaluations is not None:
@@ -223,9 +221,7 @@ def search_model(
             if search.time_limited or budget.evaluations_left() - search.reserve() < first:
                 break  # a pass costs about what the first did: one that cannot end is not begun
             search = search.restarted(seed + RESTART_SEED_STRIDE * k)
-            search.metric()
-            search.cma()
-            search.polish()
+            search.descend()
             best.stages.append(f"restart {k}: " + ", ".join(search.stages)
                                + f", |r|^2 {search.cost_best:.4g}")
             if search.cost_best < best.cost_best - TOL_COST:
@@ -353,12 +349,14 @@ class SearchState:
             return self.failed_cost + min(o.cost, self.failed_cost)
         return 3.0 * self.failed_cost
 
-    def rank_starts(self, xs: list[FloatArray]) -> None:
-        """Evaluate given (not random) starts, keeping those that can be run, with their
-        residuals; every pass of the search shares them (:meth:`restarted`)."""
-        outcomes = self.evaluate(xs)
-        self.given += list(zip(xs, outcomes, strict=True))
-        self._keep_starts(xs, outcomes)
+    def rank_starts(self, xs: list[FloatArray], drawn: Sequence[FloatArray] = ()) -> None:
+        """Evaluate starts in one batch, keeping those that can be run, with their residuals:
+        ``xs`` given (not random), which every pass of the search shares (:meth:`restarted`),
+        and ``drawn``, this pass's random ones."""
+        outcomes = self.evaluate([*xs, *drawn])
+        self.given += [(np.clip(x, self.space.lower, self.space.upper), o)
+                       for x, o in zip(xs, outcomes, strict=False)]
+        self._keep_starts([*xs, *drawn], outcomes)
 
     def _keep_starts(self, xs: list[FloatArray], outcomes: list[Outcome]) -> None:
         for x, o in zip(xs, outcomes, strict=True):
@@ -479,15 +477,17 @@ class SearchState:
         self.stages.append(f"starts {self.budget.used - used}")
         self.budget.report(f"starts: {self.budget.used} evaluated")
 
-    def spread_starts(self, x0: FloatArray, given: Sequence[FloatArray] = ()) -> None:
+    def spread_starts(self, x0: FloatArray, given: list[FloatArray]) -> None:
         """From ``x0``, Sobol points (this pass's seed) over the plausible ranges of the
         coordinates whose start is a guess, evaluated in one batch with more ``given`` starts."""
-        sobol = self.space.sobol_points(x0, sorted(self.space.spread), popsize(self.space.dim),
-                                        self.seed)
-        xs = [*given, *sobol]
-        outcomes = self.evaluate(xs)
-        self.given += list(zip(given, outcomes, strict=False))
-        self._keep_starts(xs, outcomes)
+        self.rank_starts(given, self.space.sobol_points(x0, sorted(self.space.spread),
+                                                        popsize(self.space.dim), self.seed))
+
+    def descend(self) -> None:
+        """The stages after the starts: the metric, CMA-ES, the polish."""
+        self.metric()
+        self.cma()
+        self.polish()
 
     def restarted(self, seed: int) -> SearchState:
         """Another pass of the search (:func:`search_model`'s ``restarts``): a state with the
@@ -504,7 +504,7 @@ class SearchState:
         other._keep_starts(xs, outcomes)
         used = self.budget.used
         if self.space.spread:
-            other.spread_starts(other.x_best)
+            other.spread_starts(other.x_best, [])
         other.stages.append(f"starts {self.budget.used - used}")
         return other
 
