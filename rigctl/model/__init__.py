@@ -11,7 +11,7 @@ from rigctl.model.effects import LIBRARY, CoreParams, Effect, LinearTerms, SlipC
 from rigctl.model.noise import NoiseModel
 from rigctl.model.params import ParameterError, ParamInfo, ParamSpec
 from rigctl.model.result import SimResult, SlipEvent
-from rigctl.model.simulator import Simulator, Stepper, StepperState, TimeLimitError
+from rigctl.model.simulator import Simulator, Stepper, StepperState, TimeLimitError, run_clock
 from rigctl.model.spec import BASES, ModelSpec, build_model, effect_names
 
 __all__ = [
@@ -36,4 +36,5 @@ __all__ = [
     "TimeLimitError",
     "build_model",
     "effect_names",
+    "run_clock",
 ]

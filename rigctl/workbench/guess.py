@@ -49,10 +49,17 @@ def initial_guess(dataset: Dataset, choice: ModelChoice, free: Sequence[FreePara
                   bounded: bool = False, deadline: float | None = None) -> dict[str, float]:
     """The rescaled values (module docstring); ``bounded`` and ``deadline`` bound the model's run
     as :func:`~rigctl.workbench.evaluate.evaluate`'s do."""
+    model = evaluate(dataset, choice, bounded=bounded, deadline=deadline).events
+    return guess_from_events(dataset, choice, free, model)
+
+
+def guess_from_events(dataset: Dataset, choice: ModelChoice, free: Sequence[FreeParam],
+                      model: Sequence[EventTable]) -> dict[str, float]:
+    """:func:`initial_guess` from the slip events ``model`` of ``choice`` already simulated on
+    ``dataset`` (one table per run)."""
     values = {p.name: p.value for p in choice.parameter_table()}
     names = {fp.name for fp in free}
     meas = [r.events for r in dataset.runs]
-    model = evaluate(dataset, choice, bounded=bounded, deadline=deadline).events
     new = dict(values)
     r_peak = _ratio(_median(meas, "peak_N", True, True), _median(model, "peak_N", True, True))
     r_drop = _ratio(_median(meas, "drop_N", True, True), _median(model, "drop_N", True, True))

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -33,8 +32,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rigctl.errors import SimulationError
-from rigctl.model import ParameterError, ParamInfo, TimeLimitError
+from rigctl.model import ParameterError, ParamInfo, TimeLimitError, run_clock
 from rigctl.records.dataset import Dataset
+from rigctl.records.features import EventTable
 from rigctl.records.rig_description import RigDescription
 from rigctl.records.ringing import ringing_mass
 from rigctl.records.signals import FloatArray
@@ -170,6 +170,10 @@ class Objective:
         self.free = list(free)
         self.n_evaluations = 0
         self._cache: dict[bytes, FloatArray] = {}
+        self.last_events: tuple[bytes, list[EventTable]] | None = None
+        """The slip events of the last point this objective ran the model at (its key, the bytes
+        of its coordinates): what :func:`~rigctl.workbench.guess.guess_from_events` re-reads the
+        base levels from without running the model again."""
         self.best_u: FloatArray | None = None
         self.best_cost = math.inf
         self.failed_norm = FAILED_RESIDUAL
@@ -187,8 +191,9 @@ class Objective:
         self._at_start = {p.name: p.value for p in table}
         self._m_bounds = next((p.lower, p.upper) for p in table if p.name == "m_kg")
         self.time_limit_s: float | None = None
-        """Wall seconds an evaluation may take (None: no limit); one that takes longer is a
-        point that cannot be run (:mod:`rigctl.workbench.search_pool` sets it)."""
+        """CPU seconds an evaluation may take (:func:`rigctl.model.run_clock`; None: no limit);
+        one that takes longer is a point that cannot be run (:mod:`rigctl.workbench.search_pool`
+        sets it)."""
 
     def values(self, u: FloatArray) -> dict[str, float]:
         """The model's values at ``u``: the free parameters, and the mass where it follows the
@@ -211,8 +216,9 @@ class Objective:
             if not physically_valid(candidate, self.fn_range):
                 raise ParameterError("mu_k >= mu_s")
             deadline = None if self.time_limit_s is None else \
-                time.monotonic() + self.time_limit_s
+                run_clock() + self.time_limit_s
             ev = evaluate(self.dataset, candidate, bounded=True, deadline=deadline)
+            self.last_events = (key, ev.events)
             vec = ev.score.vector
             if misses_most_slips(self.dataset, ev.score.comparisons):
                 self._trapped.add(key)

@@ -33,9 +33,10 @@ re-fitted *linearly*, from a handful of evaluations of the model with the set ad
    b ln(1 + theta V_ref / D_c) to every friction level: a few per cent of mu, tens of scatter
    units, and the slips' timing moves with it). So each of those points that can be run is also
    evaluated with the base's friction levels and stiffnesses re-read from the data at the
-   effect's values (the ratio guess of :mod:`rigctl.workbench.guess`, one run of the model there,
-   in a worker, :meth:`~rigctl.workbench.search_pool.EvaluationPool.reread`), as the data-scale
-   start reads them for the model itself; profiled the same way.
+   effect's values (the ratio guess of :mod:`rigctl.workbench.guess`, read from the slips of the
+   point's own evaluation in the worker that made it: :attr:`~rigctl.workbench.search_pool.
+   Point.reread`), as the data-scale start reads them for the model itself; profiled the same
+   way.
 
 A set's screened error is the model's error scaled by the lowest profiled cost over its points
 *relative to the profiled cost of the off point* (the model itself, its base re-fitted linearly):
@@ -45,11 +46,11 @@ effect, and where the model's fit is at its least-squares minimum it is zero (J_
 Where it is not (a fit ended by its budget, a residual rough at a finite difference's scale), the
 linear re-fit predicts a gain at every point alike, which the full fits then do not find; counted
 as the set's gain it would make every set look significant. Every screened cost is that of an
-evaluated residual; only the base's re-fit is linear. Costs: about 3 + 3 SPREAD_POINTS + 1-3
-evaluations per on-coordinate per set (each re-read is one run and its point one more): 30-35 for
-the library's effects, a little over half of a 60-evaluation short search. The point where it
-was found, with the base moved by the damped Gauss-Newton step the profile assumes, is the set's
-start for its full fit (:attr:`Screened.start`).
+evaluated residual; only the base's re-fit is linear. Costs: about 3 + 2 SPREAD_POINTS + 1-3
+evaluations per on-coordinate per set (a re-read costs no run of its own, its point one
+evaluation): 20-25 for the library's effects, about a third of a 60-evaluation short search.
+The point where it was found, with the base moved by the damped Gauss-Newton step the profile
+assumes, is the set's start for its full fit (:attr:`Screened.start`).
 """
 
 from __future__ import annotations
@@ -201,7 +202,8 @@ class _SetScreen:
             search = SearchState(self.space, pool, self.budget, self.seed, False)
             labelled = [*(("typical size", x) for x in self._typical_point()),
                         *(("spread point", x) for x in self._spread_points())]
-            outcomes = search.evaluate([self.x0, *(x for _, x in labelled)])
+            outcomes = search.evaluate([self.x0, *(x for _, x in labelled)],
+                                       reread=[False] + [True] * len(labelled))
             o0 = outcomes[0]
             if o0.status != OK or o0.vector is None:
                 say(f"  screened {' + '.join(self.effects)}: the model itself cannot be run")
@@ -217,12 +219,9 @@ class _SetScreen:
             found += [(profiled_cost(o.vector, Q), label, x, o.vector)
                       for (label, x), o in zip(labelled, outcomes[1:], strict=True)
                       if o.status == OK and o.vector is not None]
-            runnable = [(label, x) for (label, x), o in zip(labelled, outcomes[1:], strict=True)
-                        if o.status != FAILED]
-            reread = [(f"{label}, levels re-read", self._with_base(x, values))
-                      for (label, x), values in zip(runnable, pool.reread(
-                          [self.space.point(x) for _, x in runnable]), strict=True)
-                      if values]
+            reread = [(f"{label}, levels re-read", self._with_base(x, o.reread))
+                      for (label, x), o in zip(labelled, outcomes[1:], strict=True)
+                      if o.status != FAILED and o.reread]
             found += [(profiled_cost(o.vector, Q), label, x, o.vector)
                       for (label, x), o in zip(reread, search.evaluate([x for _, x in reread]),
                                                strict=True)

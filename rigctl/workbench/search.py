@@ -319,10 +319,14 @@ class SearchState:
 
     # -- evaluation ---------------------------------------------------------------------------
 
-    def evaluate(self, xs: list[FloatArray]) -> list[Outcome]:
-        """Evaluate ``xs`` (clipped to the bounds) and keep the best point seen."""
+    def evaluate(self, xs: list[FloatArray], reread: Sequence[bool] = ()) -> list[Outcome]:
+        """Evaluate ``xs`` (clipped to the bounds) and keep the best point seen; ``reread``: per
+        point, also re-read the base levels there (:attr:`~rigctl.workbench.search_pool.Outcome.
+        reread`)."""
         xs = [np.clip(x, self.space.lower, self.space.upper) for x in xs]
-        outcomes: list[Outcome] = self.pool.evaluate([self.space.point(x) for x in xs])
+        flags = list(reread) or [False] * len(xs)
+        outcomes: list[Outcome] = self.pool.evaluate(
+            [replace(self.space.point(x), reread=f) for x, f in zip(xs, flags, strict=True)])
         self._take(xs, outcomes)
         return outcomes
 

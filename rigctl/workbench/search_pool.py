@@ -15,7 +15,9 @@ dataset and the model once, so a task carries only a point; each worker
 
 **A time limit per evaluation.** Once the pool has timed an evaluation on a point's integration
 path, the point is sent with a limit of :data:`TIME_LIMIT_FACTOR` times the median of the pool's
-evaluations on that path so far (at least :data:`TIME_LIMIT_FLOOR_S`); a model run that passes it
+evaluations on that path so far (at least :data:`TIME_LIMIT_FLOOR_S`), both in CPU seconds of the
+worker's thread (:func:`rigctl.model.run_clock`: a machine busy with other jobs neither stops a
+point a quiet one lets end nor changes the median); a model run that passes it
 is stopped (:class:`~rigctl.model.simulator.TimeLimitError`) and the point counts as one that
 cannot be run, as a model that slips past the record's slip budget does. The path is the kernel's
 (:meth:`~rigctl.model.spec.ModelSpec.general_path`): a plug-in's terms act only away from their
@@ -45,7 +47,6 @@ import os
 import pickle
 import signal
 import statistics
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from types import TracebackType
@@ -55,12 +56,12 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from rigctl.errors import SimulationError
-from rigctl.model import Drive, ParameterError, Simulator
+from rigctl.model import Drive, ParameterError, Simulator, run_clock
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
 from rigctl.workbench.budget import Budget
 from rigctl.workbench.evaluate import evaluate, model_drive
-from rigctl.workbench.guess import initial_guess
+from rigctl.workbench.guess import guess_from_events, initial_guess
 from rigctl.workbench.identify import (
     FitResult,
     FreeParam,
@@ -84,9 +85,11 @@ twenty typical ones holds its worker for longer than a whole CMA-ES generation t
 population of 4 + 3 ln n <= 13 points for the search's n <= 20 coordinates): a model that
 chatters through slips the record cannot show. Evaluated to the end, one such point has held a
 search for minutes; stopped, it is a point that cannot be run."""
-TIME_LIMIT_FLOOR_S = 2.0
-"""... and at least this long: a machine shared with other jobs delays a process by up to about a
-second (scheduling, page faults), which a short evaluation's median does not include."""
+TIME_LIMIT_FLOOR_S = 0.5
+"""... and at least this much. The limit is CPU time of the worker's thread
+(:func:`rigctl.model.run_clock`), which other jobs on the machine do not inflate, so the floor
+only keeps a limit above a run's fixed costs (the model's build, page faults of its output tables:
+tens of milliseconds), which a median of short evaluations may not show."""
 WARM_UP_SAMPLES = 8
 """Samples of the first run each worker simulates before its first point, to compile the model's
 code (numba) outside the points' time limits."""
@@ -100,7 +103,10 @@ class Point:
     u: FloatArray
     n_elements: int | None = None
     time_limit_s: float | None = None
-    """Wall seconds its evaluation may take (None: no limit; :class:`EvaluationPool` sets it)."""
+    """CPU seconds its evaluation may take (:func:`rigctl.model.run_clock`; None: no limit;
+    :class:`EvaluationPool` sets it)."""
+    reread: bool = False
+    """Also re-read the base levels from the data at this point (:attr:`Outcome.reread`)."""
 
 
 @dataclass(frozen=True)
@@ -113,9 +119,14 @@ class Outcome:
     status: str
     vector: FloatArray | None = None
     elapsed_s: float = math.nan
-    """Wall seconds the evaluation took (NaN where it was stopped or failed at once)."""
+    """CPU seconds the evaluation took (:func:`rigctl.model.run_clock`; NaN where it was stopped
+    or failed at once)."""
     timed_out: bool = False
     """The model run passed the point's time limit (a :data:`FAILED` point)."""
+    reread: dict[str, float] | None = None
+    """Where the point asked for it (:attr:`Point.reread`) and the model ran there: the base
+    levels and stiffnesses re-read from the data at the point (the ratio guess of
+    :mod:`rigctl.workbench.guess`) from the slips of this same run of the model."""
 
 
 @dataclass(frozen=True)
@@ -151,7 +162,7 @@ class _Evaluator:
             Simulator(self.choice.build(), run.sample_rate_hz).run(short, record_elements=False)
 
     def __call__(self, point: Point) -> Outcome:
-        t0 = time.monotonic()
+        t0 = run_clock()
         try:
             obj = self._objective(point.n_elements)
             obj.time_limit_s = point.time_limit_s
@@ -160,8 +171,18 @@ class _Evaluator:
             return Outcome(np.inf, FAILED)
         if obj.failed(point.u):  # the vector is the failure penalty: a least-squares fit's value
             return Outcome(np.inf, FAILED, vec, timed_out=obj.timed_out(point.u))
-        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec,
-                       time.monotonic() - t0)
+        elapsed = run_clock() - t0
+        return Outcome(float(vec @ vec), TRAPPED if obj.trapped(point.u) else OK, vec, elapsed,
+                       reread=self._reread_here(obj, point) if point.reread else None)
+
+    def _reread_here(self, obj: Objective, point: Point) -> dict[str, float] | None:
+        """:meth:`reread` from the model's slips of the evaluation just made at ``point`` (the
+        same run of the model; run again only where the objective answered from its cache)."""
+        key = np.asarray(point.u, dtype=np.float64).tobytes()
+        if obj.last_events is None or obj.last_events[0] != key:
+            return self.reread(point)
+        choice = obj.choice.with_values(obj.values(point.u))
+        return guess_from_events(self.dataset, choice, self.free, obj.last_events[1])
 
     def _objective(self, n_elements: int | None) -> Objective:
         """The objective of the model with ``n_elements`` elements (None: its own), made once."""
@@ -178,7 +199,7 @@ class _Evaluator:
         limit); None where the model cannot be run there."""
         obj = self._objective(point.n_elements)
         choice = obj.choice.with_values(obj.values(point.u))
-        deadline = None if point.time_limit_s is None else time.monotonic() + point.time_limit_s
+        deadline = None if point.time_limit_s is None else run_clock() + point.time_limit_s
         try:
             return initial_guess(self.dataset, choice, self.free, bounded=True, deadline=deadline)
         except (SimulationError, ParameterError):
@@ -215,11 +236,6 @@ def _evaluate_in_worker(point: Point) -> Outcome:
     return evaluator(point)
 
 
-def _reread_in_worker(point: Point) -> dict[str, float] | None:
-    evaluator: _Evaluator = _WORKER["evaluator"]
-    return evaluator.reread(point)
-
-
 def _finish_in_worker(task: FinishTask) -> FitResult:
     evaluator: _Evaluator = _WORKER["evaluator"]
     return evaluator.finish(task)
@@ -234,7 +250,7 @@ class EvaluationPool:
         self.choice, self.free = choice, tuple(free)
         self.workers = max(int(workers), 0)
         self._times: dict[bool, list[float]] = {}
-        """Wall seconds of each evaluation that ran to its end, by integration path (True: the
+        """CPU seconds of each evaluation that ran to its end, by integration path (True: the
         general path), for the time limit's median."""
         self._tried: set[bool] = set()
         """The paths that have had a point run alone (module docstring)."""
@@ -269,7 +285,7 @@ class EvaluationPool:
         self._pool = None
 
     def time_limit_s(self, general: bool = False) -> float | None:
-        """The wall seconds an evaluation on the exact (or ``general``) path may take now (module
+        """The CPU seconds an evaluation on the exact (or ``general``) path may take now (module
         docstring; None before an evaluation on that path is timed)."""
         times = self._times.get(general)
         if not times:
@@ -315,20 +331,6 @@ class EvaluationPool:
                 self._times.setdefault(g, []).append(o.elapsed_s)
         self.n_timed_out += sum(1 for o in out if o.timed_out)
         return out
-
-    def reread(self, points: Sequence[Point]) -> list[dict[str, float] | None]:
-        """Each point's base levels re-read from the data (:meth:`_Evaluator.reread`, None where
-        its model cannot be run), in order; each counts one evaluation and runs within its path's
-        time limit."""
-        points = [replace(p, time_limit_s=self.time_limit_s(self.general_path(p)))
-                  for p in points]
-        self.budget.check()
-        if self._local is not None:
-            out = [self._local.reread(p) for p in points]
-        else:
-            out = self._wait(self._pool.map_async(_reread_in_worker, points, chunksize=1))
-        self.budget.spend(len(out))
-        return list(out)
 
     def finish(self, task: FinishTask) -> FitResult:
         """The answer of ``task`` (and its uncertainties); its evaluations count in the budget."""
