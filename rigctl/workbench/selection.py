@@ -11,23 +11,27 @@ One step:
 
 1. **Screen** every single effect (``screen``: the score screen of :mod:`rigctl.workbench.
    screening`, about one Jacobian per set, or short fits, :func:`by_short_fits`: the same search on
-   a small budget). The screened error ranks the candidates; the best ``SCREEN_KEEP`` singles go
-   on.
-2. **Pairs** of the best ``PAIR_POOL`` screened singles are screened the same way; the best
-   ``SCREEN_KEEP`` pairs go on.
-3. **Gate** (:func:`gate`): of the kept sets those whose screened error is significant against
-   the model by the rule below go on (:func:`promising`): a set's screened error is that of a
-   point the screen evaluated, so it is about what the full fit reaches at worst. Free places
-   among the SCREEN_KEEP singles then go to singles whose *score statistic* is significant
-   (:func:`score_significant`: the score test, chi-square at SCORE_ALPHA over the step's singles),
-   strongest first: a significant slope at the effect's off values is evidence that the data
-   contain its direction even where no screened point shows a significant gain (the gain lies
-   beyond the linear re-fit of the base, which the full fit is not limited to). Where no set
-   passes, the step ends there.
-4. **Fit** those sets fully (``fit``), each also from the point where its screen found its
-   error (so a fit does not end worse than what the screen saw), and score each against the
-   model (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as
-   the samples, at least 10 % of the error, E^2 down by 0.5).
+   a small budget). The screened error ranks the candidates.
+2. **Gate** (:func:`gate`): of the best ``SCREEN_KEEP`` singles those whose screened error is
+   significant against the model by the rule below go on (:func:`promising`): a set's screened
+   error is that of a point the screen evaluated, so it is about what the full fit reaches at
+   worst. Free places among the SCREEN_KEEP then go to singles whose *score statistic* is
+   significant (:func:`score_significant`: the score test, chi-square at SCORE_ALPHA over the
+   step's singles), strongest first: a significant slope at the effect's off values is evidence
+   that the data contain its direction even where no screened point shows a significant gain (the
+   gain lies beyond the linear re-fit of the base, which the full fit is not limited to).
+3. **Fit** those singles fully (``fit``), each also from the point where its screen found its
+   error (so a fit does not end worse than what the screen saw), and score each against the model
+   (:func:`~rigctl.workbench.ranking.score_candidate`: delta BIC with the slip events as the
+   samples, at least 10 % of the error, E^2 down by 0.5).
+4. **Pairs** (:func:`pair_sets`) of the best ``PAIR_POOL`` screened singles are screened the same
+   way, but not those holding the best significant single: a pair holding it is added only where
+   it is significant against it (rule 5), which is the question the next step asks of its partner
+   with that single in the model, by the partner's own screen and fit. Of the best SCREEN_KEEP
+   pairs, those whose screened error is significant against what a pair must beat (the best
+   significant single, with the parameters the pair has beyond it; the model where no single is
+   significant) are fitted fully (:func:`worth_fitting`). Where no single or pair passes, the step
+   ends there.
 5. **Add** the best significant single; a pair instead only where it is significant against that
    single (or against the model, where no single is): forward selection takes two effects at once
    only where the data demand both.
@@ -227,19 +231,45 @@ def score_significant(s: Screened, n_sets: int) -> bool:
         float(chi2.sf(s.score, s.score_df)) < SCORE_ALPHA / max(n_sets, 1)
 
 
-def gate(model: FitResult, singles: Sequence[Screened], pairs: Sequence[Screened],
-         n_events: int) -> list[Screened]:
-    """The screened sets a step fits fully (module docstring, 3): of the first SCREEN_KEEP singles
-    and pairs those :func:`promising`, then, in the free places among SCREEN_KEEP singles, the
-    singles whose score is significant (:func:`score_significant`), the smallest tail probability
-    first."""
+def gate(model: FitResult, singles: Sequence[Screened], n_events: int) -> list[Screened]:
+    """The screened singles a step fits fully (module docstring, 3): of the first SCREEN_KEEP
+    those :func:`promising`, then, in the free places among SCREEN_KEEP, the singles whose score
+    is significant (:func:`score_significant`), the smallest tail probability first."""
     kept = [s for s in singles[:SCREEN_KEEP] if promising(model, s, n_events)]
     chosen = {s.effects for s in kept}
     by_score = sorted((s for s in singles
                        if s.effects not in chosen and score_significant(s, len(singles))),
                       key=lambda s: float(chi2.logsf(s.score, s.score_df)))
-    kept += by_score[:SCREEN_KEEP - len(kept)]
-    return kept + [s for s in pairs[:SCREEN_KEEP] if promising(model, s, n_events)]
+    return kept + by_score[:SCREEN_KEEP - len(kept)]
+
+
+def pair_sets(singles: Sequence[Screened], best: Trial | None) -> list[tuple[str, ...]]:
+    """The pairs a step screens (module docstring, 2): of the best PAIR_POOL screened singles,
+    every two, but not those holding the step's best significant single ``best``."""
+    lead = [s.effects[0] for s in singles[:PAIR_POOL]]
+    return [tuple(sorted((a, b))) for a, b in itertools.combinations(lead, 2)
+            if best is None or best.effects[0] not in (a, b)]
+
+
+def worth_fitting(model: FitResult, best: Trial | None, pairs: Sequence[Screened],
+                  n_events: int, say: Say = lambda _m: None) -> list[Screened]:
+    """Of the first SCREEN_KEEP screened ``pairs`` those whose screened error is significant
+    against what a pair must beat to be added (module docstring, 5): the step's best significant
+    single ``best`` (with the parameters the pair has beyond it), or the model where no single is
+    significant (:func:`promising`)."""
+    if best is None:
+        return [p for p in pairs[:SCREEN_KEEP] if promising(model, p, n_events)]
+    out: list[Screened] = []
+    for p in pairs[:SCREEN_KEEP]:
+        extra = added_parameters(model, p) - added_parameters(
+            model, Screened(best.effects, p.error, 0.0, 0, ""))
+        sc = score_candidate(" + ".join(p.effects), best.fit.error, p.error, n_events, extra)
+        if math.isfinite(p.error) and sc.significant:
+            out.append(p)
+        else:
+            say(f"  {' + '.join(p.effects)}: screened {p.error:.3g}, not significant against "
+                f"{best.name} ({best.fit.error:.3g}): not fitted")
+    return out
 
 
 def added_parameters(model: FitResult, s: Screened) -> int:
@@ -257,34 +287,23 @@ def forward_step(
     say: Say, deadline: RunDeadline | None = None, error_of: ErrorFn | None = None,
 ) -> tuple[Trial | None, list[Trial], list[Screened]]:
     """One forward step from ``model``: the set to add (None: nothing significant), the trials
-    (none where the :func:`gate` passes no screened set) and every screen. With ``deadline``,
+    (none where no screened set passes its gate) and every screen. With ``deadline``,
     each fit gets its share of the run's time left (:meth:`RunDeadline.share_s`); with
     ``error_of``, each single is judged at the best point known for it (:func:`best_known`)."""
     n = dataset.n_events
     singles = screen(dataset, model, [(c,) for c in pool])
-    pair_sets = [tuple(sorted((a.effects[0], b.effects[0])))
-                 for a, b in itertools.combinations(singles[:PAIR_POOL], 2)]
-    pairs = screen(dataset, model, pair_sets)
+    trials = _fit_sets(dataset, model, gate(model, singles, n), fit=fit, say=say,
+                       deadline=deadline, fits_after=SCREEN_KEEP)
+    best = _best_significant(trials)
+    pairs = screen(dataset, model, pair_sets(singles, best))
+    trials += _fit_sets(dataset, model, worth_fitting(model, best, pairs, n, say), fit=fit,
+                        say=say, deadline=deadline)
     screens = sorted([*singles, *pairs], key=lambda s: s.error)
-    kept = gate(model, singles, pairs, n)
-    if not kept:
+    if not trials:
         say(f"  no screened set is significant against {model.choice.label()} by its error "
             f"or its score ({model.error:.3g}; best {screens[0].error:.3g})" if screens else
             "  nothing to screen")
         return None, [], screens
-    trials: list[Trial] = []
-    clock = RoundClock([1.0] * len(kept))
-    for i, s in enumerate(kept):
-        name = " + ".join(s.effects)
-        if not promising(model, s, n):
-            say(f"  {name}: its screened error is not significant, its score "
-                f"is ({s.score:.3g}, {s.score_df} coordinates): fitted fully")
-        res = fit(dataset, with_effects(model.choice, s.effects),
-                  starts=() if s.start is None else (s.start,),
-                  max_wall_s=_share(deadline, len(kept) - i))
-        took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
-        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
-        trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
     if error_of is not None:
         trials = best_known(dataset, model, trials, error_of=error_of, say=say)
     trials.sort(key=lambda t: _finite(t.fit.error))
@@ -295,6 +314,36 @@ def forward_step(
         if _score(best_pair.name, against, best_pair.fit, n).significant:
             return best_pair, trials, screens
     return best_single, trials, screens
+
+
+def _fit_sets(
+    dataset: Dataset, model: FitResult, sets: Sequence[Screened], *, fit: FitFn, say: Say,
+    deadline: RunDeadline | None, fits_after: int = 0,
+) -> list[Trial]:
+    """Each screened set of ``sets`` fitted fully on ``model`` (also from its screen's point),
+    as trials; each fit's share of the run's time left counts the ``fits_after`` that may follow
+    these."""
+    n = dataset.n_events
+    trials: list[Trial] = []
+    clock = RoundClock([1.0] * len(sets))
+    for i, s in enumerate(sets):
+        name = " + ".join(s.effects)
+        if not promising(model, s, n):
+            say(f"  {name}: its screened error is not significant, its score "
+                f"is ({s.score:.3g}, {s.score_df} coordinates): fitted fully")
+        res = fit(dataset, with_effects(model.choice, s.effects),
+                  starts=() if s.start is None else (s.start,),
+                  max_wall_s=_share(deadline, len(sets) - i + fits_after))
+        took = f" in {res.elapsed_s:.0f} s" if res.elapsed_s > 0.0 else ""
+        say(f"  fitted {name}: {model.error:.3g} -> {res.error:.3g}{took} {clock.finished(i)}")
+        trials.append(Trial(s.effects, res, _score(name, model, res, n), s.error))
+    return trials
+
+
+def _best_significant(trials: Sequence[Trial]) -> Trial | None:
+    """The significant trial of lowest error (None where none is significant)."""
+    return min((t for t in trials if t.score.significant),
+               key=lambda t: _finite(t.fit.error), default=None)
 
 
 def best_known(dataset: Dataset, model: FitResult, trials: Sequence[Trial], *,

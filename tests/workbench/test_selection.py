@@ -243,6 +243,40 @@ def test_each_full_fit_and_refit_says_how_far_its_part_is():
     assert any(m.strip().startswith("without a") and m.endswith("[1/1]") for m in said)
 
 
+def test_no_pair_holding_the_best_significant_single_is_screened():
+    # "a" alone removes 60 %: a pair holding it is the next step's question (its partner with "a"
+    # in the model), so none is screened; b + c (neither significant alone) still is
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.5, S("c"): 9.6, S("a", "b"): 3.95,
+               S("a", "c"): 3.97, S("b", "c"): 9.4})
+    base = t.fit(DATASET, ModelChoice("paper"))
+    t.fitted.clear()
+    out = sel.rank_effects(DATASET, base, list(POOL), fit=t.fit,
+                           screen=sel.by_short_fits(t.screen))
+    pairs = [k for k in t.screened if len(k) == 2]
+    assert pairs and all("a" not in k for k in pairs)
+    assert S("b", "c") in pairs
+    assert not any(len(k) == 2 for k in t.fitted)
+    assert out.rounds[0].chosen is not None and out.rounds[0].chosen.effects == ("a",)
+
+
+def test_a_pair_is_fitted_only_where_it_screens_significant_against_the_best_single():
+    # "a" removes 60 %; b + c screens at 3.9 (not significant against a's 4.0): not fitted
+    t = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.5, S("c"): 9.6, S("b", "c"): 3.9})
+    said: list[str] = []
+    base = t.fit(DATASET, ModelChoice("paper"))
+    t.fitted.clear()
+    sel.rank_effects(DATASET, base, list(POOL), fit=t.fit, screen=sel.by_short_fits(t.screen),
+                     say=said.append)
+    assert S("b", "c") in t.screened and S("b", "c") not in t.fitted
+    assert any("b + c: screened 3.9, not significant against a (4): not fitted" in m
+               for m in said)
+    # the same pair at 2.0 beats a's fit: it is fitted and taken
+    t2 = Table({S(): 10.0, S("a"): 4.0, S("b"): 9.5, S("c"): 9.6, S("b", "c"): 2.0})
+    out2 = _select(t2)
+    assert S("b", "c") in t2.fitted
+    assert out2.steps[0].effects == ("b", "c")
+
+
 def test_two_sets_the_data_cannot_tell_apart_are_reported_and_neither_is_added():
     # "a" and "b" each remove 60 % of the error, 2 apart in delta BIC (under 6): no name is forced
     t = Table({S(): 10.0, S("a"): 4.0, S("b"): 4.02, S("a", "b"): 3.99})
@@ -365,8 +399,9 @@ def test_the_ranking_after_the_model_s_refit_is_the_refitted_model_s():
 
 def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
     # the pair's fit found values at which `a` alone scores 2.05, where a's own fit stopped at 5:
-    # the pair's gain over `a` was a's unfinished fit, not `b`
-    t = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("a", "b"): 2.0},
+    # the pair's gain over `a` was a's unfinished fit, not `b` ("c", a little better than `a`
+    # at first, is the step's best single, so pairs holding `a` are screened)
+    t = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("c"): 4.9, S("a", "b"): 2.0},
               warm_errors={S("a"): 2.05})
 
     def error_of(_ds: Any, choice: ModelChoice) -> float:
@@ -377,7 +412,7 @@ def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
 
     base = t.fit(DATASET, ModelChoice("paper"))
     said: list[str] = []
-    out = sel.select_effects(DATASET, base, ["a", "b"], fit=t.fit,
+    out = sel.select_effects(DATASET, base, ["a", "b", "c"], fit=t.fit,
                              screen=sel.by_short_fits(t.screen), error_of=error_of,
                              say=said.append)
     assert out.steps[0].effects == ("a",) and out.steps[0].error_after == 2.05
@@ -386,7 +421,7 @@ def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
     assert "at a + b's fitted values without b" in single.fit.message
     assert any("a: 5 -> 2.05 at a + b's fitted values without b" in m for m in said)
     # without error_of the pair takes the single's unfinished gain
-    t2 = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("a", "b"): 2.0})
-    out2 = sel.select_effects(DATASET, t2.fit(DATASET, ModelChoice("paper")), ["a", "b"],
+    t2 = Table({S(): 10.0, S("a"): 5.0, S("b"): 9.9, S("c"): 4.9, S("a", "b"): 2.0})
+    out2 = sel.select_effects(DATASET, t2.fit(DATASET, ModelChoice("paper")), ["a", "b", "c"],
                               fit=t2.fit, screen=sel.by_short_fits(t2.screen))
     assert out2.steps[0].effects == ("a", "b")
