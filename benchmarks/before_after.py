@@ -82,8 +82,18 @@ HEADLINES: dict[str, list[Figure]] = {
         Figure("error E", "error", False),
         _PROCESS,
     ],
+    "workbench": [
+        Figure("diagnose wall s (one round)", "timing.diagnose_s", False),
+        Figure("sets screened", "timing.screened", False),
+        Figure("sets fitted fully", "timing.fitted", False),
+        _PROCESS,
+    ],
 }
 """The figures compared for each module; a module not named here is compared by its CPU seconds."""
+
+ARGS: dict[str, list[str]] = {"workbench": ["--timing-only"]}
+"""Arguments a module is run with besides ``--quick --json`` (the workbench: its one round of
+``diagnose``, not the hit-rate matrix)."""
 
 
 def parse_output(stdout: str) -> Any:
@@ -158,14 +168,15 @@ def format_rows(module: str, rows: list[Row], rounds: int) -> str:
 
 
 def run_once(tree: Path, module: str, timeout_s: float) -> Any:
-    """``bench_<module> --quick --json`` in ``tree`` with its own venv; its output, with the
-    process's wall and CPU seconds under ``_process``; None if it failed."""
+    """``bench_<module> --quick --json`` (and its :data:`ARGS`) in ``tree`` with its own venv;
+    its output, with the process's wall and CPU seconds under ``_process``; None if it failed."""
     python = tree / ".venv" / "bin" / "python"
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     try:
-        out = subprocess.run([str(python), "-m", f"benchmarks.bench_{module}", "--quick", "--json"],
+        out = subprocess.run([str(python), "-m", f"benchmarks.bench_{module}", "--quick", "--json",
+                              *ARGS.get(module, [])],
                              cwd=tree, env=env, capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
         print(f"  {tree}: {module} timed out after {timeout_s:g} s", file=sys.stderr)

@@ -176,7 +176,7 @@ def timing(workers: int | None = 2) -> dict[str, Any]:
         "runs": len(runs), "data_s": data_s, "samples": sum(r.n_samples for r in runs),
         "events": ds.n_events, "candidates": len(r0.ranking), "workers": workers,
         "prepare_s": t1 - t0, "diagnose_s": t2 - t1, "total_s": t2 - t0,
-        "screened": len(screens), "full_fit_wall_s": fits,
+        "screened": len(screens), "fitted": len(fits), "full_fit_wall_s": fits,
         "verdict": r0.verdict.verdict, "loadavg_1min_before": load0,
         "loadavg_1min_after": os.getloadavg()[0],
     }

@@ -64,3 +64,23 @@ def test_the_compare_figures_name_fields_of_its_report() -> None:
     assert all(figure(doc, f.path) is not None for f in HEADLINES["compare"])
     assert doc["compare_in_evaluations"] == 800.0
     assert "NOT met" in format_table(res)  # 40 s against the 30 s target
+
+
+def test_the_workbench_figures_name_fields_of_its_timing(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    from benchmarks import bench_workbench as bw
+
+    def fake_diagnose(ds, choice, *, workers, progress):
+        progress("  screened a: 1.5 (score 3, best at the off, 20 evaluations) [1/1]")
+        progress("  fitted a: 2 -> 1 in 3 s [1/1]")
+        return SimpleNamespace(first=SimpleNamespace(ranking=[1], verdict=SimpleNamespace(
+            verdict="a")))
+
+    run = SimpleNamespace(duration_s=40.0, n_samples=100)
+    monkeypatch.setattr(bw, "simulate_campaign", lambda *a, **k: [run])
+    monkeypatch.setattr(bw, "prepare_dataset", lambda runs: SimpleNamespace(n_events=3))
+    monkeypatch.setattr(bw, "diagnose", fake_diagnose)
+    doc = json.loads(json.dumps({"timing": bw.timing(2), "_process": {"cpu_s": 1.0}}))
+    assert all(figure(doc, f.path) is not None for f in HEADLINES["workbench"])
+    assert doc["timing"]["screened"] == 1 and doc["timing"]["fitted"] == 1
