@@ -156,4 +156,6 @@ def test_host_stamped_frames_before_the_first_daq_block_are_placed_not_lost(tmp_
     assert t.size == stats.frames > 30
     np.testing.assert_array_equal(np.diff(seq), 1)  # none lost while waiting for the clock map
     assert np.all(np.diff(t) > 0)
-    assert abs(t[0] - t_daq[0]) < 0.3, (t_daq[0], t[0])
+    # frames taken while the DAQ waited lie up to its 0.5 s delay before its first sample (a
+    # cold start puts the first frame about 0.35 s early); placed beyond that, they were misplaced
+    assert abs(t[0] - t_daq[0]) < 0.5 + 0.1, (t_daq[0], t[0])
