@@ -170,10 +170,9 @@ class Objective:
         self.free = list(free)
         self.n_evaluations = 0
         self._cache: dict[bytes, FloatArray] = {}
-        self.last_events: tuple[bytes, list[EventTable]] | None = None
-        """The slip events of the last point this objective ran the model at (its key, the bytes
-        of its coordinates): what :func:`~rigctl.workbench.guess.guess_from_events` re-reads the
-        base levels from without running the model again."""
+        self._last_events: tuple[bytes, list[EventTable]] | None = None
+        """The slip events of the last point this objective ran the model at, by its key
+        (:meth:`events_at`)."""
         self.best_u: FloatArray | None = None
         self.best_cost = math.inf
         self.failed_norm = FAILED_RESIDUAL
@@ -218,7 +217,7 @@ class Objective:
             deadline = None if self.time_limit_s is None else \
                 run_clock() + self.time_limit_s
             ev = evaluate(self.dataset, candidate, bounded=True, deadline=deadline)
-            self.last_events = (key, ev.events)
+            self._last_events = (key, ev.events)
             vec = ev.score.vector
             if misses_most_slips(self.dataset, ev.score.comparisons):
                 self._trapped.add(key)
@@ -256,6 +255,15 @@ class Objective:
     def timed_out(self, u: FloatArray) -> bool:
         """Whether the model at ``u`` failed by passing :attr:`time_limit_s`."""
         return np.asarray(u, dtype=np.float64).tobytes() in self._timed_out
+
+    def events_at(self, u: FloatArray) -> list[EventTable] | None:
+        """The model's slip events at ``u`` where ``u`` is the last point this objective ran the
+        model at (None otherwise: a point answered from the cache, or never run): what
+        :func:`~rigctl.workbench.guess.guess_from_events` re-reads the base levels from without
+        running the model again."""
+        last = self._last_events
+        key = np.asarray(u, dtype=np.float64).tobytes()
+        return last[1] if last is not None and last[0] == key else None
 
     def trapped(self, u: FloatArray) -> bool:
         """Whether the model at ``u`` misses most measured slips (:data:`MAX_MISSING_FRACTION`)."""

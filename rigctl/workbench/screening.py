@@ -71,7 +71,7 @@ from rigctl.workbench.model_choice import ModelChoice, effect_of, with_effects
 from rigctl.workbench.parallel import default_workers
 from rigctl.workbench.round_eta import RoundClock
 from rigctl.workbench.search import SearchState
-from rigctl.workbench.search_pool import FAILED, OK, EvaluationPool
+from rigctl.workbench.search_pool import OK, EvaluationPool
 from rigctl.workbench.search_space import (
     SearchSpace,
     build_space,
@@ -221,7 +221,7 @@ class _SetScreen:
                       if o.status == OK and o.vector is not None]
             reread = [(f"{label}, levels re-read", self._with_base(x, o.reread))
                       for (label, x), o in zip(labelled, outcomes[1:], strict=True)
-                      if o.status != FAILED and o.reread]
+                      if o.reread]  # None where the point failed
             found += [(profiled_cost(o.vector, Q), label, x, o.vector)
                       for (label, x), o in zip(reread, search.evaluate([x for _, x in reread]),
                                                strict=True)

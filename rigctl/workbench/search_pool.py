@@ -178,11 +178,11 @@ class _Evaluator:
     def _reread_here(self, obj: Objective, point: Point) -> dict[str, float] | None:
         """:meth:`reread` from the model's slips of the evaluation just made at ``point`` (the
         same run of the model; run again only where the objective answered from its cache)."""
-        key = np.asarray(point.u, dtype=np.float64).tobytes()
-        if obj.last_events is None or obj.last_events[0] != key:
+        events = obj.events_at(point.u)
+        if events is None:
             return self.reread(point)
         choice = obj.choice.with_values(obj.values(point.u))
-        return guess_from_events(self.dataset, choice, self.free, obj.last_events[1])
+        return guess_from_events(self.dataset, choice, self.free, events)
 
     def _objective(self, n_elements: int | None) -> Objective:
         """The objective of the model with ``n_elements`` elements (None: its own), made once."""

@@ -232,7 +232,7 @@ def score_significant(s: Screened, n_sets: int) -> bool:
 
 
 def gate(model: FitResult, singles: Sequence[Screened], n_events: int) -> list[Screened]:
-    """The screened singles a step fits fully (module docstring, 3): of the first SCREEN_KEEP
+    """The screened singles a step fits fully (module docstring, 2): of the first SCREEN_KEEP
     those :func:`promising`, then, in the free places among SCREEN_KEEP, the singles whose score
     is significant (:func:`score_significant`), the smallest tail probability first."""
     kept = [s for s in singles[:SCREEN_KEEP] if promising(model, s, n_events)]
@@ -244,7 +244,7 @@ def gate(model: FitResult, singles: Sequence[Screened], n_events: int) -> list[S
 
 
 def pair_sets(singles: Sequence[Screened], best: Trial | None) -> list[tuple[str, ...]]:
-    """The pairs a step screens (module docstring, 2): of the best PAIR_POOL screened singles,
+    """The pairs a step screens (module docstring, 4): of the best PAIR_POOL screened singles,
     every two, but not those holding the step's best significant single ``best``."""
     lead = [s.effects[0] for s in singles[:PAIR_POOL]]
     return [tuple(sorted((a, b))) for a, b in itertools.combinations(lead, 2)
@@ -261,8 +261,7 @@ def worth_fitting(model: FitResult, best: Trial | None, pairs: Sequence[Screened
         return [p for p in pairs[:SCREEN_KEEP] if promising(model, p, n_events)]
     out: list[Screened] = []
     for p in pairs[:SCREEN_KEEP]:
-        extra = added_parameters(model, p) - added_parameters(
-            model, Screened(best.effects, p.error, 0.0, 0, ""))
+        extra = added_parameters(model, p) - effect_parameters(model, best.effects)
         sc = score_candidate(" + ".join(p.effects), best.fit.error, p.error, n_events, extra)
         if math.isfinite(p.error) and sc.significant:
             out.append(p)
@@ -275,8 +274,14 @@ def worth_fitting(model: FitResult, best: Trial | None, pairs: Sequence[Screened
 def added_parameters(model: FitResult, s: Screened) -> int:
     """Parameters the screened set adds to ``model``: its effects' identified parameters (at least
     one each), the count a screen is judged with."""
+    return effect_parameters(model, s.effects)
+
+
+def effect_parameters(model: FitResult, effects: Sequence[str]) -> int:
+    """The identified parameters of ``effects`` (at least one each) as ``model``'s files define
+    them (:func:`added_parameters`)."""
     n = 0
-    for effect in s.effects:
+    for effect in effects:
         cls = effect_class(effect, model.choice.effect_files)
         n += max(1, sum(1 for p in cls.params if p.identify)) if cls is not None else 1
     return n
