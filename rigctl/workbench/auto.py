@@ -52,15 +52,6 @@ def auto_select(
                             say=say, fit_wall_s=fit_wall_s, rank_only=rank_only)
 
 
-BASE_RESTARTS = 2
-"""Further passes of the base model's search (:func:`search_model`'s ``restarts``, within its
-budget): every step is judged against the base, so a base fit ended short of its optimum credits
-the effects with the difference (a substitute added, or a refit step). A pass of the search is
-one random draw (its Sobol starts, its CMA-ES samples); where a pass ends in a poorer basin with
-probability p, the best of three does with p^3. The base's search is the cheapest of a diagnosis
-(its fewest coordinates, every effect off)."""
-
-
 def _limit(*limits: float | None) -> float | None:
     given = [x for x in limits if x is not None]
     return min(given) if given else None
@@ -101,7 +92,7 @@ def _auto_select(
 
     base = model if isinstance(model, FitResult) else search_model(
         dataset, model, workers=workers, with_uncertainty=False, cancel=cancel,
-        max_wall_s=deadline.share_s(1), restarts=BASE_RESTARTS)
+        max_wall_s=deadline.share_s(1))
     say(f"{base.choice.label()}: E {base.error:.3g}")
     _say_timed_out(base, say)
     if base.time_limited:
