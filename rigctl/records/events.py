@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigctl.records import slip_scan
-from rigctl.records.signals import FloatArray, noise_sigma
+from rigctl.records.signals import FloatArray, median, noise_sigma
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def detect_slips(
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
     if n < 8:
         return empty
-    dt = float(np.median(np.diff(t_s))) if dt_s is None else dt_s
+    dt = median(np.diff(t_s)) if dt_s is None else dt_s
     w = settings.drop_window(dt)
     gap = max(w + 1, round(settings.merge_gap_s / dt))
     d_sigma, d_informative = 0.0, False
@@ -116,7 +116,7 @@ def detect_slips(
     v_ref = 0.0
     if v_drive_m_s is not None:
         moving = np.abs(v_drive_m_s[v_drive_m_s != 0.0])
-        v_ref = float(np.median(moving)) if moving.size else 0.0
+        v_ref = median(moving) if moving.size else 0.0
     peaks, ends, signs = slip_scan.scan_slips(
         _samples(ft_N), _samples(delta_m), _NO_MASK if delta_valid is None
         else np.ascontiguousarray(delta_valid, dtype=np.bool_), _samples(v_drive_m_s),

@@ -43,7 +43,6 @@ the bands when the contact slips progressively (``stress_evolution``) and is fla
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
@@ -53,9 +52,11 @@ from rigctl.records.events import DetectionSettings, SlipIndices, detect_slips
 from rigctl.records.feature_info import EVENT_FEATURES, SE_FEATURES
 from rigctl.records.signals import (
     FloatArray,
+    median,
     noise_sigma,
     regress_slope,
 )
+from rigctl.records.time_base import TimeBase
 
 COVARIATES: tuple[str, ...] = (
     "t_s", "cycle", "fn_N", "v_drive_m_per_s", "hold_s", "stick_time_s", "cum_slip_m", "ft_N",
@@ -153,11 +154,14 @@ def extract_events(
     settings: ReadSettings,
     slips: SlipIndices | None = None,
     delta_valid: np.ndarray | None = None,
+    time_base: TimeBase | None = None,
 ) -> EventTable:
     """Detect the slips of a record and measure their features (times relative to t_s[0]).
 
     ``delta_valid`` (per sample, :mod:`rigctl.records.probe_range`): where False a probe was over
     range, and the delta features whose windows include such samples are left NaN (not compared).
+    ``time_base``: what is read from ``t_s`` and ``drive`` alone, made once for records sampled on
+    the same times (:mod:`rigctl.records.time_base`); one made for other times is not used.
 
     Steps: detect the slips; refine their drop times; each slip's stick and the windows its
     features are read over (:func:`_windows`); the levels at the drop, the loading ramp and the
@@ -165,11 +169,13 @@ def extract_events(
     stick durations and the covariates; then the load-change slips left out
     (:func:`_leave_out_load_changes`) and the initial-stage curve.
     """
-    t = t_s - t_s[0]
-    rec = _Record(t, ft_N, delta_m, fn_N, drive, settings, delta_valid)
+    if time_base is None or not time_base.fits(t_s, drive):
+        time_base = TimeBase.of(t_s, drive)
+    t = time_base.t_s
+    rec = _Record(time_base, ft_N, delta_m, fn_N, settings, delta_valid)
     if slips is None:
         slips = detect_slips(t, rec.ft_N, rec.delta_m, settings.detection, delta_valid,
-                             v_drive_m_s=_sliding_velocity(drive, t), fn_N=rec.fn_N,
+                             v_drive_m_s=time_base.v_sliding_m_per_s, fn_N=rec.fn_N,
                              dt_s=rec.dt if t.size > 1 else None,
                              delta_noise_m=rec.sigma_d if delta_valid is None else None)
     n_ev = slips.n
@@ -197,13 +203,13 @@ def extract_events(
         cov["x_drive_m"] = drive.x_at(t_drop) - float(drive.x_stage_m[0])
         finite = np.isfinite(feats["lag_m"])
         if finite.any():
-            feats["lag_m"] = feats["lag_m"] - float(np.median(feats["lag_m"][finite]))
+            feats["lag_m"] = feats["lag_m"] - median(feats["lag_m"][finite])
         _leave_out_load_changes(drive, t_drop, feats)
 
     init_k = np.full(len(INIT_BANDS), np.nan)
     if n_ev:
         i_m = rec.idx(rec.t_motion)
-        f0 = float(np.median(ft_N[max(0, i_m - 20) : i_m + 1]))
+        f0 = median(ft_N[max(0, i_m - 20) : i_m + 1])
         peak0 = float(feats["peak_N"][0])
         if np.isfinite(peak0) and abs(f0) < 0.1 * abs(peak0):
             stage[0] = 0
@@ -212,40 +218,31 @@ def extract_events(
     return EventTable(t_drop, segment, stage, feats, cov, init_k, slips.i_peak.copy(), se)
 
 
-def _sliding_velocity(drive: DriveProfile, t: FloatArray) -> FloatArray:
-    """``drive.sliding_velocity_at(t)`` for increasing sample times ``t``: each protocol phase's
-    velocity (0 in holds) repeated over its samples (a search per phase, not per sample)."""
-    starts = drive.t_s[drive.phase_knots[:-1]]
-    bounds = np.searchsorted(t, starts[1:], side="left")
-    counts = np.diff(np.concatenate([[0], bounds, [t.shape[0]]]))
-    per_phase = np.where(drive.phase_is_hold, 0.0, drive.phase_velocity)
-    out: FloatArray = np.repeat(per_phase, counts)
-    return out
-
-
 class _Record:
     """One record's signals and what every step of :func:`extract_events` reads from them (times
     relative to the first sample)."""
 
-    def __init__(self, t: FloatArray, ft_N: FloatArray, delta_m: FloatArray, fn_N: FloatArray,
-                 drive: DriveProfile, settings: ReadSettings,
+    def __init__(self, time_base: TimeBase, ft_N: FloatArray, delta_m: FloatArray,
+                 fn_N: FloatArray, settings: ReadSettings,
                  delta_valid: np.ndarray | None) -> None:
-        self.t = t
+        self.time_base = time_base
+        self.t = time_base.t_s
+        drive = time_base.drive
         self.ft_N = np.ascontiguousarray(ft_N, dtype=np.float64)
         self.delta_m = np.ascontiguousarray(delta_m, dtype=np.float64)
         self.fn_N = np.ascontiguousarray(fn_N, dtype=np.float64)
         self.drive, self.settings, self.delta_valid = drive, settings, delta_valid
-        self.dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+        self.dt = time_base.dt_s
         self.sigma_f = noise_sigma(ft_N)
         self.sigma_d = noise_sigma(delta_m)
         self.t_motion = drive.motion_start_s()
         self.drop_window = settings.detection.drop_window(self.dt)
         """Samples a drop is read over (as the slip detection reads it)."""
 
-    @cached_property
+    @property
     def x_drive(self) -> FloatArray:
         """Stage position (simplified drive) at every sample."""
-        return self.drive.x_at(self.t)
+        return self.time_base.x_drive_m
 
     def idx(self, time: float) -> int:
         """Index of the first sample at or after ``time``."""
@@ -292,7 +289,7 @@ def _windows(rec: _Record, slips: SlipIndices, t_drop: FloatArray) -> _Windows:
     settle = rec.settings.settle_s
     n_ev = td.shape[0]
     # the last slip's settled level needs at least half a typical cycle of record after it
-    min_tail = 0.5 * float(np.median(np.diff(td))) if n_ev >= 3 else 0.3
+    min_tail = 0.5 * median(np.diff(td)) if n_ev >= 3 else 0.3
     prev_td = np.concatenate([[rec.t_motion], td[:-1]])
     start = np.concatenate([[rec.t_motion], td[:-1] + settle])
     k_td = drive.segment_index(td)

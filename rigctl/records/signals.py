@@ -1,5 +1,9 @@
 """Small numerical helpers shared by event detection and feature extraction.
 
+* :func:`median` - ``np.median`` of a 1-D array, the same value bit for bit, at a quarter of the cost
+  for an even count: numpy selects the two middle elements by a partition on two ``kth`` (about
+  four times one partition at 24,000 elements); one partition at the upper middle leaves the lower
+  middle as the largest element below it.
 * :func:`noise_sigma` - white-noise RMS of a sampled signal from its second differences. For white
   noise of RMS s the second difference has variance 6 s^2, and a median-based estimate of it ignores
   the rare large steps (slips) and any linear trend (stick ramps): s = 1.4826 MAD(d2) / sqrt(6)
@@ -23,6 +27,21 @@ _MAD_TO_SIGMA = 1.482602218505602
 _NOISE_SAMPLE_LIMIT = 24000
 
 
+def median(x: FloatArray) -> float:
+    """``float(np.median(x))`` of a 1-D array (NaN where it holds a NaN or nothing): the middle
+    element, or for an even count the two middle ones summed and halved as ``np.median`` does
+    (``np.mean`` of two: their sum from 0.0 divided by 2), from one partition (module docstring)."""
+    n = x.shape[0]
+    if n == 0 or np.isnan(x).any():
+        return float("nan")
+    h = n // 2
+    p = np.partition(x, h)
+    # summed from 0.0 as numpy's mean sums (a middle -0.0 gives 0.0, as there)
+    if n % 2:
+        return float(0.0 + p[h])
+    return float((0.0 + p[:h].max() + p[h]) / 2.0)
+
+
 def noise_sigma(x: FloatArray) -> float:
     """Robust white-noise RMS of ``x`` (0 for a noise-free piecewise-linear signal)."""
     if x.shape[0] < 4:
@@ -37,7 +56,7 @@ def noise_sigma(x: FloatArray) -> float:
         )
     else:
         d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    mad = median(np.abs(d2 - median(d2)))
     if mad == 0.0:
         # quantised signals: most second differences are exactly 0; use the RMS of the small ones
         small = d2[np.abs(d2) <= 4.0 * (np.percentile(np.abs(d2), 90) + 1e-300)]

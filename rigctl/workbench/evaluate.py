@@ -7,6 +7,7 @@ settings (:mod:`rigctl.records.features`), so model and measurement go through t
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,8 @@ from rigctl.model import Drive, ModelSpec, SimResult, Simulator
 from rigctl.records.dataset import Dataset, PreparedRun
 from rigctl.records.features import EventTable, extract_events
 from rigctl.records.image_features import model_image_numbers
+from rigctl.records.signals import FloatArray
+from rigctl.records.time_base import TimeBase
 from rigctl.workbench.metrics import Score, score
 from rigctl.workbench.model_choice import ModelChoice
 
@@ -64,9 +67,29 @@ def simulate_run(spec: ModelSpec, run: PreparedRun, bounded: bool = False,
     return out
 
 
+_TIME_BASES: dict[int, tuple[weakref.ref[PreparedRun], TimeBase]] = {}
+"""Per run (by id, while it lives), the time base of its model runs (:func:`model_time_base`)."""
+
+
+def model_time_base(run: PreparedRun, t_s: FloatArray) -> TimeBase:
+    """The :class:`~rigctl.records.time_base.TimeBase` of the model's runs on ``run``: every
+    evaluation samples them on the run's times, so it is made once per run and reused while it
+    fits the times given."""
+    held = _TIME_BASES.get(id(run))
+    if held is not None and held[0]() is run and held[1].fits(t_s, run.drive):
+        return held[1]
+    base = TimeBase.of(t_s, run.drive)
+    for key in [k for k, (ref, _) in _TIME_BASES.items() if ref() is None]:
+        _TIME_BASES.pop(key, None)
+    _TIME_BASES[id(run)] = (weakref.ref(run), base)
+    return base
+
+
 def read_result(res: SimResult, run: PreparedRun) -> EventTable:
+    """The model's slips and features on ``run``, read with the run's own settings."""
     return extract_events(
-        res.t_s, res.ft_N, res.d1_m - res.d2_m, res.fn_N, run.drive, run.read
+        res.t_s, res.ft_N, res.d1_m - res.d2_m, res.fn_N, run.drive, run.read,
+        time_base=model_time_base(run, res.t_s),
     )
 
 

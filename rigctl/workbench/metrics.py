@@ -39,7 +39,7 @@ import numpy as np
 from rigctl.records.dataset import Dataset, PreparedRun
 from rigctl.records.feature_info import FEATURES, IMAGE_FEATURES
 from rigctl.records.features import EVENT_FEATURES, EventTable
-from rigctl.records.signals import FloatArray
+from rigctl.records.signals import FloatArray, median
 from rigctl.workbench.alignment import match_events, spurious_counts, stand_in_pairs
 
 MISSING_EVENT_Z = 5.0
@@ -99,7 +99,7 @@ def _less_offset(meas: FloatArray, model: FloatArray, stand_in: np.ndarray) -> F
     use = np.isfinite(r) & ~stand_in
     if not use.any():
         return r
-    out: FloatArray = r - (float(np.median(model[use])) - float(np.median(meas[use])))
+    out: FloatArray = r - (median(model[use]) - median(meas[use]))
     return out
 
 
@@ -168,25 +168,31 @@ def _score(dataset: Dataset, model_events: list[EventTable],
     parts: list[FloatArray] = []
     sums: dict[str, float] = {}
     counts: dict[str, int] = {}
+    # per run: the events counted (all but the excused) and whether any is a stand-in
+    counted = [~c.excused if c.excused.any() else np.ones(r.events.n, bool)
+               for r, c in zip(dataset.runs, comps, strict=True)]
+    any_stand_in = [bool(c.stand_in.any()) for c in comps]
     for name in EVENT_FEATURES:
         for i_run, (run, comp) in enumerate(zip(dataset.runs, comps, strict=True)):
             meas = run.events.features[name]
             z_ev = comp.residual[name] / dataset.event_sigma(i_run, name)
-            if comp.stand_in.any():
+            if any_stand_in[i_run]:
                 z_ev = np.where(comp.stand_in,
                                 np.clip(z_ev, -MISSING_EVENT_Z, MISSING_EVENT_Z), z_ev)
             z_ev = np.where(comp.missing[name], MISSING_EVENT_Z, z_ev)
+            z_ev = np.where(np.isfinite(z_ev), z_ev, MISSING_EVENT_Z)
+            active = np.isfinite(meas) & counted[i_run]
             zb = np.zeros(len(run.blocks))
             irregular = run.block_irregular or (False,) * len(run.blocks)
-            counted = ~comp.excused if comp.excused.any() else np.ones(meas.shape[0], bool)
             for b, idx in enumerate(run.blocks):
-                active = np.isfinite(meas[idx]) & counted[idx]
-                if not active.any():
+                sel = idx[active[idx]]
+                if sel.size == 0:
                     continue
-                z = z_ev[idx][active]
-                z = np.where(np.isfinite(z), z, MISSING_EVENT_Z)
-                # an irregular phase: the difference of the means in units of the spread
-                zb[b] = float(np.mean(z)) * (1.0 if irregular[b] else math.sqrt(z.size))
+                z = z_ev[sel]
+                # an irregular phase: the difference of the means in units of the spread;
+                # np.mean(z) bit for bit, without its wrapper (numpy's sum over the count)
+                zb[b] = float(np.add.reduce(z) / z.size) * (1.0 if irregular[b]
+                                                             else math.sqrt(z.size))
                 sums[name] = sums.get(name, 0.0) + zb[b] ** 2
                 counts[name] = counts.get(name, 0) + 1
             parts.append(zb)

@@ -23,7 +23,8 @@ from rigctl.model.noise import NoiseModel
 from rigctl.records import sample_stats
 from rigctl.records.drive_profile import DriveProfile, drive_profile
 from rigctl.records.events import DetectionSettings, SlipIndices, detect_slips
-from rigctl.records.features import EventTable, ReadSettings, _sliding_velocity, extract_events
+from rigctl.records.features import EventTable, ReadSettings, extract_events
+from rigctl.records.time_base import sliding_velocity
 from rigctl.workbench.campaigns import simulate_campaign
 from tests.records import reference_events as ref
 
@@ -189,7 +190,7 @@ def test_the_drive_velocity_by_phase_is_the_drives_own_per_sample() -> None:
     for run in runs:
         drive = drive_profile(run)
         t = run.t_s - run.t_s[0]
-        assert np.array_equal(_sliding_velocity(drive, t), drive.sliding_velocity_at(t))
+        assert np.array_equal(sliding_velocity(drive, t), drive.sliding_velocity_at(t))
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 127, 128, 129, 130, 257, 1000, 4099, 30011])
