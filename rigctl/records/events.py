@@ -89,6 +89,7 @@ def detect_slips(
     *,
     dt_s: float | None = None,
     delta_noise_m: float | None = None,
+    v_moving_m_s: float | None = None,
 ) -> SlipIndices:
     """Find slip events in a force record (see the module docstring).
 
@@ -98,7 +99,8 @@ def detect_slips(
     except where ``fn_N`` changes over the drop (a release of the normal load, which the
     workbench pairs as such: :mod:`rigctl.records.features`). ``dt_s`` (the median sample
     interval) and ``delta_noise_m`` (``noise_sigma`` of delta where valid): a caller that has
-    read them from this record already passes them (they are medians of the whole record).
+    read them from this record already passes them (they are medians of the whole record), as
+    ``v_moving_m_s``: the median of ``|v_drive_m_s|`` where it is not 0 (0.0 where it is 0 throughout).
     """
     n = ft_N.shape[0]
     empty = SlipIndices(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.int8))
@@ -114,9 +116,10 @@ def detect_slips(
         d_sigma = max(noise, settings.delta_sigma_m)
         d_informative = d_ok.size > 0 and float(np.ptp(d_ok)) > 20.0 * d_sigma
     v_ref = 0.0
-    if v_drive_m_s is not None:
-        moving = np.abs(v_drive_m_s[v_drive_m_s != 0.0])
-        v_ref = median(moving) if moving.size else 0.0
+    if v_moving_m_s is not None:
+        v_ref = v_moving_m_s
+    elif v_drive_m_s is not None:
+        v_ref = moving_median(v_drive_m_s)
     peaks, ends, signs = slip_scan.scan_slips(
         _samples(ft_N), _samples(delta_m), _NO_MASK if delta_valid is None
         else np.ascontiguousarray(delta_valid, dtype=np.bool_), _samples(v_drive_m_s),
@@ -126,6 +129,13 @@ def detect_slips(
 
 
 _NO_MASK = np.zeros(0, dtype=np.bool_)
+
+
+def moving_median(v_drive_m_s: FloatArray) -> float:
+    """The median of ``|v_drive_m_s|`` where it is not 0 (0.0 where it is 0 throughout): the
+    drive's typical sliding speed, which :func:`detect_slips` judges drops against."""
+    moving = np.abs(v_drive_m_s[v_drive_m_s != 0.0])
+    return median(moving) if moving.size else 0.0
 
 
 def _samples(x: FloatArray | None) -> FloatArray:

@@ -175,7 +175,8 @@ def extract_events(
     rec = _Record(time_base, ft_N, delta_m, fn_N, settings, delta_valid)
     if slips is None:
         slips = detect_slips(t, rec.ft_N, rec.delta_m, settings.detection, delta_valid,
-                             v_drive_m_s=time_base.v_sliding_m_per_s, fn_N=rec.fn_N,
+                             v_drive_m_s=time_base.v_sliding_m_per_s,
+                             v_moving_m_s=time_base.v_moving_m_per_s, fn_N=rec.fn_N,
                              dt_s=rec.dt if t.size > 1 else None,
                              delta_noise_m=rec.sigma_d if delta_valid is None else None)
     n_ev = slips.n
@@ -380,9 +381,10 @@ def _initial_curve(
     d = delta[i0 : i1 + 1]
     ok = np.ones(f.shape[0], dtype=bool) if delta_valid is None else delta_valid[i0 : i1 + 1]
     span = peak - f0
+    g = f - f0
     for b, (lo, hi) in enumerate(INIT_BANDS):
-        sel = (f - f0 >= lo * span) & (f - f0 <= hi * span) if span > 0 else \
-            (f - f0 <= lo * span) & (f - f0 >= hi * span)
+        sel = (g >= lo * span) & (g <= hi * span) if span > 0 else \
+            (g <= lo * span) & (g >= hi * span)
         if np.count_nonzero(sel) < 5 or float(np.ptp(f[sel])) < 6.0 * sigma or not ok[sel].all():
             continue
         c = regress_slope(f[sel], d[sel])

@@ -17,6 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from rigctl.records.drive_profile import DriveProfile
+from rigctl.records.events import moving_median
 from rigctl.records.signals import FloatArray, median
 
 
@@ -31,12 +32,19 @@ class TimeBase:
     drive: DriveProfile
     v_sliding_m_per_s: FloatArray
     """The drive's sliding velocity at every sample (:func:`sliding_velocity`)."""
+    t_given_s: FloatArray
+    """The times as given (absolute), which :meth:`fits` compares."""
+
+    @cached_property
+    def v_moving_m_per_s(self) -> float:
+        """The drive's typical sliding speed (:func:`rigctl.records.events.moving_median`)."""
+        return moving_median(self.v_sliding_m_per_s)
 
     @classmethod
     def of(cls, t_s: FloatArray, drive: DriveProfile) -> TimeBase:
         t = t_s - t_s[0]
         dt = median(np.diff(t)) if t.size > 1 else 1.0
-        return cls(t, dt, drive, sliding_velocity(drive, t))
+        return cls(t, dt, drive, sliding_velocity(drive, t), t_s)
 
     @cached_property
     def x_drive_m(self) -> FloatArray:
@@ -45,8 +53,8 @@ class TimeBase:
 
     def fits(self, t_s: FloatArray, drive: DriveProfile) -> bool:
         """Whether these are the times (``t_s``, absolute) and the drive it was made for."""
-        return (drive is self.drive and t_s.shape == self.t_s.shape
-                and bool(np.array_equal(t_s - t_s[0], self.t_s)))
+        return (drive is self.drive and t_s.shape == self.t_given_s.shape
+                and bool(np.array_equal(t_s, self.t_given_s)))
 
 
 def sliding_velocity(drive: DriveProfile, t: FloatArray) -> FloatArray:
