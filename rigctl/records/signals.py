@@ -3,7 +3,8 @@
 * :func:`median` - ``np.median`` of a 1-D array, the same value bit for bit, at a quarter of the cost
   for an even count: numpy selects the two middle elements by a partition on two ``kth`` (about
   four times one partition at 24,000 elements); one partition at the upper middle leaves the lower
-  middle as the largest element below it.
+  middle as the largest element below it. (Short windows inside compiled loops use
+  :func:`rigctl.records.sample_stats.np_median`, which sorts.)
 * :func:`noise_sigma` - white-noise RMS of a sampled signal from its second differences. For white
   noise of RMS s the second difference has variance 6 s^2, and a median-based estimate of it ignores
   the rare large steps (slips) and any linear trend (stick ramps): s = 1.4826 MAD(d2) / sqrt(6)

@@ -58,15 +58,27 @@ def pairing_segments(events: EventTable, drive: DriveProfile | None) -> np.ndarr
     return seg
 
 
+Segments = tuple[np.ndarray, np.ndarray]
+"""The pairing segments (:func:`pairing_segments`) of the measured events and of the model's."""
+
+
+def segments_of(measured: EventTable, model: EventTable, drive: DriveProfile | None) -> Segments:
+    """:func:`pairing_segments` of both event tables: what the functions below share (a caller
+    that runs several of them on one pair of tables passes them once)."""
+    return pairing_segments(measured, drive), pairing_segments(model, drive)
+
+
 def match_events(measured: EventTable, model: EventTable,
-                 drive: DriveProfile | None = None) -> np.ndarray:
+                 drive: DriveProfile | None = None, segments: Segments | None = None,
+                 ) -> np.ndarray:
     """Index of the paired model event for every measured event (-1 when there is none).
 
-    With the run's ``drive``, slips at a stop pair with slips at the restart (pairing_segments)."""
+    With the run's ``drive``, slips at a stop pair with slips at the restart (pairing_segments;
+    ``segments``: :func:`segments_of` these tables and drive, made already)."""
     out = np.full(measured.n, -1, dtype=np.intp)
     if measured.n == 0 or model.n == 0:
         return out
-    seg_meas, seg_model = pairing_segments(measured, drive), pairing_segments(model, drive)
+    seg_meas, seg_model = segments or segments_of(measured, model, drive)
     for seg in np.unique(seg_meas):
         mi = np.flatnonzero(seg_meas == seg)
         si = np.flatnonzero(seg_model == seg)
@@ -86,14 +98,15 @@ def match_events(measured: EventTable, model: EventTable,
 
 
 def stand_in_pairs(measured: EventTable, model: EventTable, match: np.ndarray,
-                   drive: DriveProfile | None = None) -> np.ndarray:
+                   drive: DriveProfile | None = None, segments: Segments | None = None,
+                   ) -> np.ndarray:
     """Per measured event: paired (by :func:`match_events`) with the model's first slip of its
     segment although it is not the measurement's first slip there - the model has no later slip to
     compare it with (see the module docstring)."""
     out = np.zeros(measured.n, dtype=bool)
     if measured.n == 0 or model.n == 0:
         return out
-    seg_meas, seg_model = pairing_segments(measured, drive), pairing_segments(model, drive)
+    seg_meas, seg_model = segments or segments_of(measured, model, drive)
     first_meas = np.r_[True, seg_meas[1:] != seg_meas[:-1]]
     first_model = np.r_[True, seg_model[1:] != seg_model[:-1]]
     paired = match >= 0
@@ -102,10 +115,12 @@ def stand_in_pairs(measured: EventTable, model: EventTable, match: np.ndarray,
 
 
 def spurious_counts(measured: EventTable, model: EventTable, n_segments: int,
-                    drive: DriveProfile | None = None) -> np.ndarray:
+                    drive: DriveProfile | None = None, segments: Segments | None = None,
+                    ) -> np.ndarray:
     """Model events in each segment where the measurement has no event (0 elsewhere); with the
     run's ``drive``, segments as for pairing (a slip at a stop counts after the hold)."""
-    meas_counts = np.bincount(pairing_segments(measured, drive), minlength=n_segments)[:n_segments]
-    model_counts = np.bincount(pairing_segments(model, drive), minlength=n_segments)[:n_segments]
+    seg_meas, seg_model = segments or segments_of(measured, model, drive)
+    meas_counts = np.bincount(seg_meas, minlength=n_segments)[:n_segments]
+    model_counts = np.bincount(seg_model, minlength=n_segments)[:n_segments]
     out: np.ndarray = np.where(meas_counts == 0, model_counts, 0)
     return out

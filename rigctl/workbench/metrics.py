@@ -40,7 +40,12 @@ from rigctl.records.dataset import Dataset, PreparedRun
 from rigctl.records.feature_info import FEATURES, IMAGE_FEATURES
 from rigctl.records.features import EVENT_FEATURES, EventTable
 from rigctl.records.signals import FloatArray, median
-from rigctl.workbench.alignment import match_events, spurious_counts, stand_in_pairs
+from rigctl.workbench.alignment import (
+    match_events,
+    segments_of,
+    spurious_counts,
+    stand_in_pairs,
+)
 
 MISSING_EVENT_Z = 5.0
 MARGINAL_DROP_FRACTION = 0.5
@@ -106,9 +111,10 @@ def _less_offset(meas: FloatArray, model: FloatArray, stand_in: np.ndarray) -> F
 def compare_run(run: PreparedRun, model_events: EventTable,
                 model_image: dict[str, float] | None = None) -> RunComparison:
     meas = run.events
-    match = match_events(meas, model_events, run.drive)
+    segments = segments_of(meas, model_events, run.drive)
+    match = match_events(meas, model_events, run.drive, segments)
     paired = match >= 0
-    stand_in = stand_in_pairs(meas, model_events, match, run.drive)
+    stand_in = stand_in_pairs(meas, model_events, match, run.drive, segments)
     residual: dict[str, FloatArray] = {}
     missing: dict[str, np.ndarray] = {}
     for name in EVENT_FEATURES:
@@ -119,7 +125,7 @@ def compare_run(run: PreparedRun, model_events: EventTable,
                           else _residual(name, mv, model_v))
         missing[name] = np.isfinite(mv) & ~np.isfinite(residual[name])
     init = _residual(INIT_FEATURE, meas.init_k_N_per_m, model_events.init_k_N_per_m)
-    spur = spurious_counts(meas, model_events, run.drive.n_segments(), run.drive)
+    spur = spurious_counts(meas, model_events, run.drive.n_segments(), run.drive, segments)
     image: dict[str, float] = {}
     if run.image is not None:
         measured = run.image.measured()
