@@ -3,7 +3,8 @@
 * :func:`median` - ``np.median`` of a 1-D array, the same value bit for bit, at a quarter of the cost
   for an even count: numpy selects the two middle elements by a partition on two ``kth`` (about
   four times one partition at 24,000 elements); one partition at the upper middle leaves the lower
-  middle as the largest element below it. (Short windows inside compiled loops use
+  middle as the largest element below it. Where a quarter or more of the values are exactly zero,
+  they are counted apart (see the function). (Short windows inside compiled loops use
   :func:`rigctl.records.sample_stats.np_median`, which sorts.)
 * :func:`noise_sigma` - white-noise RMS of a sampled signal from its second differences. For white
   noise of RMS s the second difference has variance 6 s^2, and a median-based estimate of it ignores
@@ -31,16 +32,48 @@ _NOISE_SAMPLE_LIMIT = 24000
 def median(x: FloatArray) -> float:
     """``float(np.median(x))`` of a 1-D array (NaN where it holds a NaN or nothing): the middle
     element, or for an even count the two middle ones summed and halved as ``np.median`` does
-    (``np.mean`` of two: their sum from 0.0 divided by 2), from one partition (module docstring)."""
+    (``np.mean`` of two: their sum from 0.0 divided by 2), from one partition (module docstring).
+
+    Where a quarter or more of the values are exactly zero (the second differences of a noise-free
+    series: a model's run), the zeros are counted and the middle ranks selected among the
+    negatives or the positives, since numpy's selection slows down about tenfold on a large block
+    of equal values. The order statistics are the same values either way. Only a zero's sign could
+    differ, and summing from 0.0 makes every zero +0.0."""
     n = x.shape[0]
     if n == 0 or np.isnan(x).any():
         return float("nan")
     h = n // 2
+    n_zero = int(np.count_nonzero(x == 0.0))
+    if n_zero * _ZERO_BLOCK_SHARE >= n:
+        neg, pos = x[x < 0.0], x[x > 0.0]
+        upper = _rank_split(neg, n_zero, pos, h)
+        if n % 2:
+            return float(0.0 + upper)
+        return float((0.0 + _rank_split(neg, n_zero, pos, h - 1) + upper) / 2.0)
     p = np.partition(x, h)
     # summed from 0.0 as numpy's mean sums (a middle -0.0 gives 0.0, as there)
     if n % 2:
         return float(0.0 + p[h])
     return float((0.0 + p[:h].max() + p[h]) / 2.0)
+
+
+_ZERO_BLOCK_SHARE = 4
+""":func:`median` counts the zeros apart where they are at least 1/4 of the values. This choice
+affects speed only, never the value. Measured on models' second differences: at about half zeros
+the split is 2-3 times faster; at about a seventh it is slower, since the selection among the
+rest then costs as much as the whole."""
+
+
+def _rank_split(neg: FloatArray, n_zero: int, pos: FloatArray, rank: int) -> float:
+    """The value of rank ``rank`` (from 0) of the sorted values: ``neg`` (all below zero), then
+    ``n_zero`` zeros, then ``pos`` (all above zero)."""
+    if rank < neg.shape[0]:
+        return float(np.partition(neg, rank)[rank])
+    rank -= neg.shape[0]
+    if rank < n_zero:
+        return 0.0
+    rank -= n_zero
+    return float(np.partition(pos, rank)[rank])
 
 
 def noise_sigma(x: FloatArray) -> float:

@@ -40,3 +40,26 @@ def test_noise_sigma_reads_the_noise_it_was_given():
     rng = np.random.default_rng(3)
     x = np.linspace(0.0, 5.0, 40_000) + rng.normal(0.0, 0.02, 40_000)
     assert noise_sigma(x) == pytest.approx(0.02, rel=0.03)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 8, 9, 64, 65, 1000, 1001, 23984])
+@pytest.mark.parametrize("zero_share", [0.25, 0.4, 0.5, 0.6, 0.9, 1.0])
+def test_the_same_bits_as_numpy_where_many_values_are_exactly_zero(n, zero_share):
+    """A noise-free series' second differences: many exact zeros of either sign, the middle
+    falling among the negatives, the zeros or the positives as the shares vary."""
+    rng = np.random.default_rng(int(n + 1000 * zero_share))
+    for neg_share in (0.0, 0.2, 0.5, 0.8, 1.0):
+        zero = rng.random(n) < zero_share
+        sign = np.where(rng.random(n) < neg_share, -1.0, 1.0)
+        x = np.where(zero, np.where(rng.random(n) < 0.5, -0.0, 0.0),
+                     sign * np.abs(rng.normal(size=n)) * 1e-14)
+        assert _bits(median(x)) == _bits(float(np.median(x)))
+        lattice = np.where(zero, 0.0, sign * rng.integers(1, 4, size=n) * 2.0**-46)
+        assert _bits(median(lattice)) == _bits(float(np.median(lattice)))
+
+
+def test_zeros_with_infinities():
+    for x in ([-np.inf, 0.0, 0.0, np.inf], [-np.inf, 0.0, np.inf, np.inf], [0.0, -0.0, np.inf],
+              [-np.inf, -0.0, -0.0, 5.0]):
+        a = np.array(x)
+        assert _bits(median(a)) == _bits(float(np.median(a)))
