@@ -43,18 +43,17 @@ def median(x: FloatArray) -> float:
     if n == 0 or np.isnan(x).any():
         return float("nan")
     h = n // 2
+    even = n % 2 == 0
     n_zero = int(np.count_nonzero(x == 0.0))
     if n_zero * _ZERO_BLOCK_SHARE >= n:
-        neg, pos = x[x < 0.0], x[x > 0.0]
-        upper = _rank_split(neg, n_zero, pos, h)
-        if n % 2:
-            return float(0.0 + upper)
-        return float((0.0 + _rank_split(neg, n_zero, pos, h - 1) + upper) / 2.0)
-    p = np.partition(x, h)
+        lower, upper = _middle_split(x[x < 0.0], n_zero, x[x > 0.0], h, even)
+    else:
+        p = np.partition(x, h)
+        lower, upper = (float(p[:h].max()) if even else math.nan), float(p[h])
     # summed from 0.0 as numpy's mean sums (a middle -0.0 gives 0.0, as there)
-    if n % 2:
-        return float(0.0 + p[h])
-    return float((0.0 + p[:h].max() + p[h]) / 2.0)
+    if not even:
+        return float(0.0 + upper)
+    return float((0.0 + lower + upper) / 2.0)
 
 
 _ZERO_BLOCK_SHARE = 4
@@ -64,16 +63,29 @@ the split is 2-3 times faster; at about a seventh it is slower, since the select
 rest then costs as much as the whole."""
 
 
-def _rank_split(neg: FloatArray, n_zero: int, pos: FloatArray, rank: int) -> float:
-    """The value of rank ``rank`` (from 0) of the sorted values: ``neg`` (all below zero), then
-    ``n_zero`` zeros, then ``pos`` (all above zero)."""
-    if rank < neg.shape[0]:
-        return float(np.partition(neg, rank)[rank])
-    rank -= neg.shape[0]
-    if rank < n_zero:
-        return 0.0
-    rank -= n_zero
-    return float(np.partition(pos, rank)[rank])
+def _middle_split(neg: FloatArray, n_zero: int, pos: FloatArray, h: int,
+                  even: bool) -> tuple[float, float]:
+    """The values of ranks ``h - 1`` (NaN unless ``even``) and ``h`` (from 0) of the sorted values:
+    ``neg`` (all below zero), then ``n_zero`` >= 1 zeros, then ``pos`` (all above zero). Each comes
+    from one partition at most: where both ranks fall in one part, the lower is the largest
+    element below the upper, as in :func:`median`."""
+    n_neg = neg.shape[0]
+    if h < n_neg:
+        p = np.partition(neg, h)
+        return (float(p[:h].max()) if even else math.nan), float(p[h])
+    r = h - n_neg  # the upper's rank among the zeros and the positives
+    if r < n_zero:
+        upper = 0.0
+    else:
+        p = np.partition(pos, r - n_zero)
+        upper = float(p[r - n_zero])
+    if not even:
+        return math.nan, upper
+    if r == 0:  # the lower is the largest negative (there is one: h >= 1 for an even count)
+        return float(neg.max()), upper
+    if r - 1 < n_zero:
+        return 0.0, upper
+    return float(p[: r - n_zero].max()), upper
 
 
 def noise_sigma(x: FloatArray) -> float:
