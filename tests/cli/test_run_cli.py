@@ -207,11 +207,17 @@ def _limit_file_size(limit_bytes: int):
 @pytest.mark.skipif(not hasattr(resource, "RLIMIT_FSIZE"), reason="needs RLIMIT_FSIZE")
 @pytest.mark.slow
 def test_a_full_disk_mid_run_fails_safely_and_keeps_what_was_written(tmp_path):
-    """The file-size limit stands in for a full disk: writes beyond it fail (EFBIG) like ENOSPC."""
+    """The file-size limit stands in for a full disk: writes beyond it fail (EFBIG) like ENOSPC.
+
+    The run writes about 3.1 MB (33 s of rig time). The 2 MB limit falls mid-run, after some
+    19,000 samples. At ``--speed 20`` a flush interval (0.25 s) carries at most about 5,000
+    samples (some 370 kB), so several flushes land before the limit. Before this, the test ran
+    at ``--speed max`` with a 3 MB limit: a fast machine put 33,728 samples in the first
+    interval, past that limit, and no row was flushed to keep."""
     out = tmp_path / "full.h5"
-    proc = subprocess.run([*RIGCTL, "run", "tlre", "--speed", "max", "--no-camera", "--out", str(out),
+    proc = subprocess.run([*RIGCTL, "run", "tlre", "--speed", "20", "--no-camera", "--out", str(out),
                            *SHORT], capture_output=True, text=True, timeout=120,
-                          preexec_fn=_limit_file_size(3_000_000))
+                          preexec_fn=_limit_file_size(2_000_000))
     assert proc.returncode == 1, (proc.stdout, proc.stderr)
     assert "run file writer" in proc.stderr or "writer" in proc.stderr
     assert "failed" in proc.stdout
