@@ -44,9 +44,11 @@ One step:
 
 Steps repeat until nothing is significant, the data cannot decide (or ``max_steps``). Then
 **backward elimination**: each effect of the final model is refitted out (the model without it,
-from the final values); an effect whose removal is not significantly worse by the same rule goes,
-the weakest first, until every effect left earns its place. Forward and backward use one rule, so
-a model the procedure returns is one from which no single addition or removal is significant.
+from the final values and from the values the model had before the effect was added, the later
+effects at their final values: :func:`before_added`); an effect whose removal is not
+significantly worse by the same rule goes, the weakest first, until every effect left earns its
+place. Forward and backward use one rule, so a model the procedure returns is one from which no
+single addition or removal is significant.
 
 Everything that fits or screens is injected (``fit``: ``(dataset, choice, starts=) ->
 FitResult``; ``screen``: ``(dataset, model, sets) -> [Screened]``), so the procedure is
@@ -69,6 +71,7 @@ from rigctl.workbench.identify import FitResult
 from rigctl.workbench.model_choice import (
     ModelChoice,
     effect_class,
+    effect_of,
     with_effects,
     without_effect,
     without_effects,
@@ -395,20 +398,47 @@ def contenders(chosen: Trial, trials: Sequence[Trial]) -> tuple[Trial, ...]:
     return (chosen, *sorted(close, key=lambda t: t.score.delta_bic)) if close else ()
 
 
+def before_added(model: ModelChoice, effect: str, path: Sequence[Step],
+                 base: FitResult) -> ModelChoice | None:
+    """``model`` without ``effect``, its values where ``path`` (the forward steps) had them
+    before ``effect`` was added: the base's and earlier effects' values from the model that
+    step started from, the later effects' from ``model``. None where no step added it (an
+    effect the user gave).
+
+    An effect that takes up part of what the model's fit left moves the model's other
+    parameters with it, and a later effect is fitted on those values. The same model without the
+    effect, refitted only from ``model``'s values, starts where the effect put the others and
+    can end short of the fit they had without it; two starts of the same model, the fit keeps
+    the better."""
+    at = next((i for i, s in enumerate(path) if s.kind == "add" and effect in s.effects), None)
+    if at is None:
+        return None
+    before = path[at - 1].model.choice if at > 0 else base.choice
+    rest = without_effect(model, effect)
+    kept = set(rest.effects)
+    return rest.with_values({k: v for k, v in before.values.items()
+                             if effect_of(k) == "" or effect_of(k) in kept})
+
+
 def backward_elimination(
     dataset: Dataset, model: FitResult, *, fit: FitFn, protected: Sequence[str], say: Say,
-    deadline: RunDeadline | None = None,
+    deadline: RunDeadline | None = None, path: Sequence[Step] = (),
+    base: FitResult | None = None,
 ) -> tuple[FitResult, list[Step]]:
     """Remove, weakest first, every effect of ``model`` (but ``protected``, the user's) whose
-    removal is not significantly worse (each fit at its share of ``deadline``'s time left)."""
+    removal is not significantly worse (each fit at its share of ``deadline``'s time left).
+    With ``path`` (the forward steps from ``base``), each removal's fit also starts from the
+    values the model had before the effect was added (:func:`before_added`)."""
     steps: list[Step] = []
     while True:
         outs: list[tuple[str, FitResult, CandidateScore]] = []
         removable = [e for e in model.choice.effects if e not in protected]
         clock = RoundClock([1.0] * len(removable))
         for i, effect in enumerate(removable):
+            earlier = None if base is None else before_added(model.choice, effect, path, base)
             try:
                 rest = fit(dataset, without_effect(model.choice, effect),
+                           starts=() if earlier is None else (earlier,),
                            max_wall_s=_share(deadline, len(removable) - i))
             except SearchCancelledError:
                 if not _time_is_up(deadline):
@@ -491,7 +521,7 @@ def select_effects(
         return sel
     model, removals = backward_elimination(dataset, model, fit=fit,
                                            protected=base.choice.effects, say=say,
-                                           deadline=deadline)
+                                           deadline=deadline, path=list(sel.steps), base=base)
     if _time_is_up(deadline):
         sel.time_limited = "the run's time limit ended backward elimination before its end"
         say(f"time limit: {sel.time_limited}")

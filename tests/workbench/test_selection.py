@@ -425,3 +425,77 @@ def test_a_pair_is_judged_against_its_member_at_the_best_point_known_for_it():
     out2 = sel.select_effects(DATASET, t2.fit(DATASET, ModelChoice("paper")), ["a", "b", "c"],
                               fit=t2.fit, screen=sel.by_short_fits(t2.screen))
     assert out2.steps[0].effects == ("a", "b")
+
+
+class Moves(Table):
+    """Fits whose effects move the base's values: each fit sets ``mu_s`` to its effects' count
+    and each effect's ``p`` to 1. A fit of ``slow`` reaches ``good`` only from a start with
+    ``mu_s`` where the base had it (0) and its effects at their fitted ``p`` (1); from anywhere
+    else it ends at its error in ``errors``."""
+
+    def __init__(self, errors: Mapping[frozenset[str], float], slow: frozenset[str],
+                 good: float) -> None:
+        super().__init__(errors)
+        self.slow, self.good = slow, good
+
+    def _result(self, choice: ModelChoice, error: float) -> FitResult:
+        moved = choice.with_values({"mu_s": float(len(choice.effects)),
+                                    **{f"{e}.p": 1.0 for e in choice.effects}})
+        return FitResult(moved, error, {}, ("mu_s", "mu_k", *(f"{e}.p" for e in choice.effects)))
+
+    def fit(self, _ds: Any, choice: ModelChoice, *, starts: Sequence[ModelChoice] = (),
+            max_wall_s: float | None = None) -> FitResult:
+        res = super().fit(_ds, choice, starts=starts, max_wall_s=max_wall_s)
+        if frozenset(choice.effects) == self.slow and any(
+                s.values.get("mu_s") == 0.0 and all(s.values.get(f"{e}.p") == 1.0
+                                                     for e in self.slow)
+                for s in (choice, *starts)):
+            return self._result(choice, self.good)
+        return res
+
+
+def test_a_removal_is_also_fitted_from_the_values_before_the_effect_was_added():
+    # "a" is added first and moves the base; "b" is added on top. Without "a", "b" reaches
+    # 2.02 only from the base's own values with "b" as fitted, not from where "a" put the base
+    t = Moves({S(): 10.0, S("a"): 5.0, S("b"): 5.5, S("a", "b"): 2.0}, slow=S("b"), good=2.02)
+    base = t.fit(DATASET, ModelChoice("paper", values={"mu_s": 0.0}))
+    out = sel.select_effects(DATASET, base, list(POOL), fit=t.fit,
+                             screen=sel.by_short_fits(t.screen))
+    assert [(s.kind, s.effects) for s in out.steps] == [
+        ("add", ("a",)), ("add", ("b",)), ("remove", ("a",))]
+    assert out.final.choice.effects == ("b",) and out.final.error == 2.02
+    (start,) = t.starts[S("b")]
+    assert start.effects == ("b",)
+    assert start.values["mu_s"] == 0.0  # the base's value before "a" was added
+    assert start.values["b.p"] == 1.0  # "b" (added after "a") at its final value
+    assert not any(k.startswith("a.") for k in start.values)
+
+
+def test_without_its_path_a_removal_starts_from_the_final_values_only():
+    t = Moves({S(): 10.0, S("a"): 5.0, S("b"): 5.5, S("a", "b"): 2.0}, slow=S("b"), good=2.02)
+    final = t.fit(DATASET, ModelChoice("paper", ("a", "b")))
+    model, removed = sel.backward_elimination(DATASET, final, fit=t.fit, protected=(),
+                                              say=lambda _m: None)
+    assert removed == [] and model is final  # "b" alone ended at 5.5 from the final values
+    assert t.starts[S("b")] == ()
+
+
+def test_before_added_takes_the_model_before_the_step_that_added_the_effect():
+    base = FitResult(ModelChoice("paper", values={"mu_s": 0.0}), 10.0, {}, ("mu_s",))
+    m1 = FitResult(ModelChoice("paper", ("a",), {"mu_s": 1.0, "a.p": 1.0}), 5.0, {}, ())
+    m2 = FitResult(ModelChoice("paper", ("a",), {"mu_s": 2.0, "a.p": 2.0}), 4.0, {}, ())
+    m3 = FitResult(ModelChoice("paper", ("a", "b", "c"),
+                               {"mu_s": 3.0, "a.p": 3.0, "b.p": 3.0, "c.p": 3.0}), 2.0, {}, ())
+    path = [sel.Step("add", ("a",), 10.0, 5.0, 1.0, m1),
+            sel.Step("refit", (), 5.0, 4.0, 1.0, m2),
+            sel.Step("add", ("b", "c"), 4.0, 2.0, 1.0, m3)]
+    final = m3.choice
+    # "b" came with "c" after a refit: the start is the refitted model's, "c" at its final value
+    b = sel.before_added(final, "b", path, base)
+    assert b is not None and b.effects == ("a", "c")
+    assert dict(b.values) == {"mu_s": 2.0, "a.p": 2.0, "c.p": 3.0}
+    # "a" was the first: the base's values, the later effects at their final values
+    a = sel.before_added(final, "a", path, base)
+    assert a is not None and dict(a.values) == {"mu_s": 0.0, "b.p": 3.0, "c.p": 3.0}
+    # an effect no step added (the user's) has no such start
+    assert sel.before_added(final.with_effect("u"), "u", path, base) is None
