@@ -42,7 +42,11 @@
    parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
    than the scatter or a trial step is shorter than the residual resolves; then the answer's
    uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`).
-6. **Restarts** (``restarts``, where a caller asks for them): further passes of stages 2-5 from the
+6. **From the data's mass and damping** (a fit that adds effects): a second pass of stages 2-5
+   from the given starts with the slider mass and drive damping at the data-scale start's
+   (:func:`dynamics_guessed`), each along its mass line, begun while the budget pays for one like
+   the first; the better pass is the answer.
+7. **Restarts** (``restarts``, where a caller asks for them): further passes of stages 2-5 from the
    same given starts with their own random draws (Sobol starts, CMA-ES samples), begun while the
    budget pays for one like the first; the best pass is the answer. A pass is one random draw,
    and on a multimodal objective two draws can end in different local minima.
@@ -75,6 +79,7 @@ from rigctl.workbench.drop_shape import drop_shape_mass
 from rigctl.workbench.element_count import spreads_elements
 from rigctl.workbench.guess import initial_guess
 from rigctl.workbench.identify import (
+    DYNAMIC_PARAMS,
     FAILED_FACTOR,
     FAILED_RESIDUAL,
     FD_CHANGE_MAX,
@@ -211,10 +216,26 @@ def search_model(
     with signals_raise(), EvaluationPool(dataset, choice, space.free, budget, n_workers) as pool:
         search = SearchState(space, pool, budget, seed, with_uncertainty)
         typical = typical_point(dataset, choice, added)
-        search.starts([choice, *([scaled] if scaled is not None else []),
-                       *([typical] if typical is not None else []), *starts])
+        given = [choice, *([scaled] if scaled is not None else []),
+                 *([typical] if typical is not None else []), *starts]
+        search.starts(given)
         search.descend()
         best, first = search, budget.used
+        guessed = dynamics_guessed(given, scaled, space) if added else []
+        if guessed and not search.time_limited:
+            if per_pass is not None and budget.max_evaluations is not None:
+                budget.max_evaluations = budget.used + per_pass
+            if budget.evaluations_left() - search.reserve() >= first:
+                search = SearchState(space, pool, budget, seed + RESTART_SEED_STRIDE,
+                                     with_uncertainty)
+                search.starts(guessed, mass_guessed=True)
+                search.descend()
+                best.stages.append("from the data's mass and damping: "
+                                   + ", ".join(search.stages)
+                                   + f", |r|^2 {search.cost_best:.4g}")
+                if search.cost_best < best.cost_best - TOL_COST:
+                    search.stages = [*best.stages, "the data's mass and damping kept"]
+                    best = search
         for k in range(1, restarts + 1):
             if per_pass is not None and budget.max_evaluations is not None:
                 budget.max_evaluations = budget.used + per_pass
@@ -232,6 +253,32 @@ def search_model(
                    cpu_s=time.process_time() - c0,
                    time_limited=best.time_limited or search.time_limited,
                    n_timed_out=pool.n_timed_out)
+
+
+def dynamics_guessed(given: Sequence[ModelChoice], scaled: ModelChoice | None,
+                     space: SearchSpace) -> list[ModelChoice]:
+    """The ``given`` starts with the slider mass and drive damping at the data-scale start's
+    (``scaled``), where the search fits them and the start has other values: the starts of a
+    fit that adds effects.
+
+    Mass and damping are seen only through the slips' shape and timing, which the effects being
+    added change (a load-dependent stiffness moves the slip's frequency, a sensor's lag its
+    drop, a velocity-dependent friction its damping). A model without them imitates them through
+    its mass and damping, and its fit can settle decades from the values the same model with the
+    effects needs (a damping ratio of 1e-4 against 1e-2), in a basin the mass line, which keeps
+    the start's damping ratio, does not leave. The data-scale values are a guess independent of
+    that fit (docs/identification.md, "The search")."""
+    if scaled is None:
+        return []
+    free = {fp.name for fp in space.free}
+    dyn = {k: scaled.values[k] for k in DYNAMIC_PARAMS if k in free and k in scaled.values}
+    if not dyn:
+        return []
+    out: list[ModelChoice] = []
+    for c in given:
+        if any(c.values.get(k) != v for k, v in dyn.items()):
+            out.append(c.with_values(dyn))
+    return out
 
 
 def added_effects(choice: ModelChoice) -> list[str]:
@@ -449,9 +496,10 @@ class SearchState:
 
     # -- stages -------------------------------------------------------------------------------
 
-    def starts(self, choices: list[ModelChoice]) -> None:
-        """The model's values and its data-scale start; where the model states no mass, each
-        given start along its mass line (:meth:`SearchSpace.mass_line`); each of them and the
+    def starts(self, choices: list[ModelChoice], mass_guessed: bool | None = None) -> None:
+        """The model's values and its data-scale start; where the mass is a guess
+        (``mass_guessed``; default: the model states no mass), each given start along its mass
+        line (:meth:`SearchSpace.mass_line`); each of them and the
         best with the effects being added off (:func:`added_effects`: the model's values with them off are the
         fit they were added to, its own fitted effects kept: a search from there never ends worse
         than that fit); from the best, Sobol points over the
@@ -466,7 +514,9 @@ class SearchState:
         drop = self.drop_shape_start(choices[0])
         if drop is not None:
             self.rank_starts([drop])
-        if "m_kg" not in choices[0].values:  # the mass is the preset's guess: its line
+        if mass_guessed is None:
+            mass_guessed = "m_kg" not in choices[0].values  # the preset's guess
+        if mass_guessed:
             self.rank_starts([x for g in given for x in self.space.mass_line(g)])
         if self.space.spread:
             x0 = self.x_best
