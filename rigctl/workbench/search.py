@@ -42,7 +42,8 @@
    parameters' units), its Jacobians' columns evaluated in parallel, until a step gains less
    than the scatter or a trial step is shorter than the residual resolves; then the answer's
    uncertainties (:func:`~rigctl.workbench.identify.with_uncertainties`).
-6. **From the data's mass and damping** (a fit that adds effects): a second pass of stages 2-5
+6. **From the data's mass and damping** (a fit that adds effects to a model whose mass or damping
+   are fitted values): a second pass of stages 2-5
    from the given starts with the slider mass and drive damping at the data-scale start's
    (:func:`dynamics_guessed`), each along its mass line, begun while the budget pays for one like
    the first; the better pass is the answer.
@@ -221,7 +222,8 @@ def search_model(
         search.starts(given)
         search.descend()
         best, first = search, budget.used
-        guessed = dynamics_guessed(given, scaled, space) if added else []
+        fitted = any(k in choice.values for k in DYNAMIC_PARAMS if k not in rig.fixed)
+        guessed = dynamics_guessed(given, scaled, space) if added and fitted else []
         if guessed and not search.time_limited:
             if per_pass is not None and budget.max_evaluations is not None:
                 budget.max_evaluations = budget.used + per_pass
@@ -258,8 +260,10 @@ def search_model(
 def dynamics_guessed(given: Sequence[ModelChoice], scaled: ModelChoice | None,
                      space: SearchSpace) -> list[ModelChoice]:
     """The ``given`` starts with the slider mass and drive damping at the data-scale start's
-    (``scaled``), where the search fits them and the start has other values: the starts of a
-    fit that adds effects.
+    (``scaled``), where the search fits them and the start has other values: the starts of the
+    second pass of a fit that adds effects to a model whose mass or damping are fitted values (a
+    model with none, a fresh one, walks every given start's mass line, the data-scale start's
+    included, in its first pass).
 
     Mass and damping are seen only through the slips' shape and timing, which the effects being
     added change (a load-dependent stiffness moves the slip's frequency, a sensor's lag its

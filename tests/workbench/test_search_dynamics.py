@@ -89,6 +89,13 @@ def test_a_fit_that_adds_nothing_has_one_pass(record, base):
 
 
 @pytest.mark.slow
+def test_a_model_with_no_fitted_values_has_one_pass_that_walks_every_start_s_mass_line(record):
+    res = search_model(record, ModelChoice("paper", ("stribeck",)), workers=2,
+                       with_uncertainty=False)
+    assert PASS not in res.message
+
+
+@pytest.mark.slow
 def test_no_second_pass_is_begun_that_the_budget_cannot_pay_for(record, base):
     choice = with_effects(base.choice, ("stribeck",))
     both = search_model(record, choice, workers=2, with_uncertainty=False)
