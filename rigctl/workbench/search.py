@@ -224,37 +224,42 @@ def search_model(
         best, first = search, budget.used
         fitted = any(k in choice.values for k in DYNAMIC_PARAMS if k not in rig.fixed)
         guessed = dynamics_guessed(given, scaled, space) if added and fitted else []
-        if guessed and not search.time_limited:
-            if per_pass is not None and budget.max_evaluations is not None:
-                budget.max_evaluations = budget.used + per_pass
-            if budget.evaluations_left() - search.reserve() >= first:
-                search = SearchState(space, pool, budget, seed + RESTART_SEED_STRIDE,
-                                     with_uncertainty)
-                search.starts(guessed, mass_guessed=True)
-                search.descend()
-                best.stages.append("from the data's mass and damping: "
-                                   + ", ".join(search.stages)
-                                   + f", |r|^2 {search.cost_best:.4g}")
-                if search.cost_best < best.cost_best - TOL_COST:
-                    search.stages = [*best.stages, "the data's mass and damping kept"]
-                    best = search
+        if guessed and not search.time_limited and _affords_a_pass(search, per_pass, first):
+            search = SearchState(space, pool, budget, seed + RESTART_SEED_STRIDE,
+                                 with_uncertainty)
+            search.starts(guessed, mass_guessed=True)
+            best = _better_pass(best, search, "from the data's mass and damping")
         for k in range(1, restarts + 1):
-            if per_pass is not None and budget.max_evaluations is not None:
-                budget.max_evaluations = budget.used + per_pass
-            if search.time_limited or budget.evaluations_left() - search.reserve() < first:
+            if not _affords_a_pass(search, per_pass, first):
                 break  # a pass costs about what the first did: one that cannot end is not begun
             search = search.restarted(seed + RESTART_SEED_STRIDE * k)
-            search.descend()
-            best.stages.append(f"restart {k}: " + ", ".join(search.stages)
-                               + f", |r|^2 {search.cost_best:.4g}")
-            if search.cost_best < best.cost_best - TOL_COST:
-                search.stages = [*best.stages, f"restart {k} kept"]
-                best = search
+            best = _better_pass(best, search, f"restart {k}")
         result = best.finish(choice)
     return replace(result, n_evaluations=budget.used, elapsed_s=time.perf_counter() - t0,
                    cpu_s=time.process_time() - c0,
                    time_limited=best.time_limited or search.time_limited,
                    n_timed_out=pool.n_timed_out)
+
+
+def _affords_a_pass(search: SearchState, per_pass: int | None, first: int) -> bool:
+    """Whether another pass is begun after ``search`` (``first``: the evaluations the first pass
+    used): with the default budget, a cap of ``per_pass`` more evaluations is set first; a pass
+    costs about what the first did, and one that cannot end is not begun."""
+    budget = search.budget
+    if per_pass is not None and budget.max_evaluations is not None:
+        budget.max_evaluations = budget.used + per_pass
+    return not search.time_limited and budget.evaluations_left() - search.reserve() >= first
+
+
+def _better_pass(best: SearchState, other: SearchState, label: str) -> SearchState:
+    """``other`` (its starts ranked) descended, its stages told in ``best``'s message under
+    ``label``: the better of the two, ``other`` only where it gains more than TOL_COST."""
+    other.descend()
+    best.stages.append(f"{label}: " + ", ".join(other.stages) + f", |r|^2 {other.cost_best:.4g}")
+    if other.cost_best < best.cost_best - TOL_COST:
+        other.stages = [*best.stages, f"{label} kept"]
+        return other
+    return best
 
 
 def dynamics_guessed(given: Sequence[ModelChoice], scaled: ModelChoice | None,
