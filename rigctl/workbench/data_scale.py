@@ -112,6 +112,28 @@ class DataScale:
         return all(math.isfinite(v) and v > 0 for v in (self.fn_N, self.mu_peak, self.k_eff_N_per_m))
 
 
+def split_guessed(scale: DataScale) -> tuple[float, float] | None:
+    """The plausible interval of the stiffness ratio Kts / K0 where delta is measured but does not
+    resolve the interface's give in stick (``k_stick_N_per_m`` +inf), else None.
+
+    The split of the series stiffness K_eff between drive spring and interface is then a guess of
+    :func:`base_start` (a rigid interface, STIFF_CAP times K_eff), not a reading, while the delta
+    features (the slips' jumps and lags of delta) still tell one split from another; the search
+    spreads it (:func:`rigctl.workbench.search_space.build_space`). Either stiffness may be the
+    softer, by up to STIFF_CAP, the ratio at which ``base_start`` takes the stiffer one as rigid:
+    ``(1 / STIFF_CAP, STIFF_CAP)``. An unresolved give does not make the interface the stiffer:
+    the probes' noise and the share of resolved stick windows (RESOLVED_FRACTION) decide it as
+    much as the give does. K_eff itself is read from the loading ramps (paper Sec. 5.2).
+
+    Without delta no feature reads the interface's give (the split shows only in the slips'
+    dynamics, and the fit reports the two stiffnesses as not determined): the preset's ratio is
+    kept and not spread, as a spread over a direction the data hardly tell apart adds only the
+    variance of its draws."""
+    if not scale.usable or not scale.delta_measured or not math.isinf(scale.k_stick_N_per_m):
+        return None
+    return (1.0 / STIFF_CAP, STIFF_CAP)
+
+
 def measure_scale(tables: Iterable[EventTable], delta_measured: bool = True,
                   ringing: Ringing | None = None) -> DataScale:
     """The :class:`DataScale` of the measured events of a campaign (``ringing``: its post-slip

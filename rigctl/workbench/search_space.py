@@ -36,7 +36,12 @@ from scipy.stats import qmc
 from rigctl.model.effects import Effect
 from rigctl.records.dataset import Dataset
 from rigctl.records.signals import FloatArray
-from rigctl.workbench.data_scale import NEAR_PRESET, scale_effect_values, scale_ratios
+from rigctl.workbench.data_scale import (
+    NEAR_PRESET,
+    scale_effect_values,
+    scale_ratios,
+    split_guessed,
+)
 from rigctl.workbench.data_start import campaign_scale
 from rigctl.workbench.identify import DYNAMIC_PARAMS, FreeParam, free_params
 from rigctl.workbench.model_choice import ModelChoice, effect_class, effect_of
@@ -106,8 +111,9 @@ class SearchSpace:
     upper: FloatArray
     spread: dict[int, tuple[float, float]]
     """Coordinates whose start is a guess, not a reading of the data (effect parameters, mass and
-    damping not stated, the element count), and their plausible interval (internal units): the
-    spread starts are drawn there."""
+    damping not stated, the element count, an unresolved stiffness split), and their plausible
+    interval (internal units; for Kts of :attr:`series`, ln(Kts / K0)): the spread starts are
+    drawn there."""
     count: bool
     off: dict[int, float] = field(default_factory=dict)
     """Effect coordinates and their off value (internal units, within the bounds): the start with
@@ -116,7 +122,14 @@ class SearchSpace:
     """Coordinate i moves with coordinate j, slope a, where it is spread (``{i: (j, a)}``): its
     own spread is about that line. The drive damping C0 = 2 zeta sqrt(K0 M) follows the mass
     with slope 1/2 in logs (DAMPING_FOLLOWS_MASS): what is unknown of it on its own is the
-    damping ratio zeta, not the C0 a new mass asks for."""
+    damping ratio zeta, not the C0 a new mass asks for; the initial-stage interface stiffness
+    Kt0 follows Kts with slope 1 where the split is spread (both are the interface's)."""
+    series: tuple[int, int] | None = None
+    """(K0, Kts) coordinates where the split of the series stiffness between them is spread
+    (:func:`~rigctl.workbench.data_scale.split_guessed`): a spread draw of Kts is one of the
+    ratio, ln(Kts / K0), each ratio as likely as its inverse, and a point that sets Kts moves K0
+    so that 1/K0 + 1/Kts keeps its start's value, the series stiffness the loading ramps read
+    (at that series stiffness K_eff, Kts = K_eff (1 + Kts/K0))."""
 
     def prior_cov(self) -> FloatArray:
         """The covariance of where the optimum is expected: each coordinate's standard deviation,
@@ -135,6 +148,13 @@ class SearchSpace:
         for i, (j, a) in self.follows.items():
             if j in values:
                 x[i] += a * (values[j] - x0[j])
+        if self.series is not None and self.series[1] in values and self.series[0] not in values:
+            i0, i1 = self.series
+            fk0, fkts = self.free[i0], self.free[i1]
+            inv = 1.0 / fk0.to_p(float(x0[i0])) + 1.0 / fkts.to_p(float(x0[i1])) \
+                - 1.0 / fkts.to_p(float(x[i1]))
+            if inv > 0.0:  # else this Kts alone is softer than the series: K0 left as it is
+                x[i0] = fk0.to_u(min(max(1.0 / inv, fk0.lower), fk0.upper))
         return x
 
     def with_values(self, x: FloatArray, values: Mapping[str, float],
@@ -202,8 +222,20 @@ class SearchSpace:
         unit = qmc.Sobol(d=len(idx), scramble=True, seed=seed).random_base2(m)
         lo = np.array([self.spread[i][0] for i in idx])
         hi = np.array([self.spread[i][1] for i in idx])
-        return [self.spread_point(x0, dict(zip(idx, lo + row * (hi - lo), strict=True)))
+        return [self.spread_point(x0, {i: self._drawn(i, float(t), x0)
+                                       for i, t in zip(idx, lo + row * (hi - lo), strict=True)})
                 for row in unit]
+
+    def _drawn(self, i: int, t: float, x0: FloatArray) -> float:
+        """Coordinate ``i``'s value for a draw ``t`` from its :attr:`spread` interval: ``t``
+        itself, except for Kts of :attr:`series`, drawn as ln(Kts / K0) at ``x0``'s series
+        stiffness."""
+        if self.series is None or i != self.series[1]:
+            return t
+        i0, i1 = self.series
+        f0, f1 = self.free[i0], self.free[i1]
+        k_eff = 1.0 / (1.0 / f0.to_p(float(x0[i0])) + 1.0 / f1.to_p(float(x0[i1])))
+        return f1.to_u(min(max(k_eff * (1.0 + math.exp(t)), f1.lower), f1.upper))
 
     def values(self, x: FloatArray) -> dict[str, float]:
         """Parameter values of vector ``x`` (the element count included where searched)."""
@@ -265,6 +297,7 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
     if all(n in names_at and out[names_at[n]].log and names_at[n] in spread
            for n in DYNAMIC_PARAMS):
         follows[names_at["c0_N_s_per_m"]] = (names_at["m_kg"], DAMPING_FOLLOWS_MASS)
+    series = _spread_split(dataset, out, spread, std, follows)
     count = spreads_elements and "n_elements" not in rig.fixed
     if count:
         lo_n, hi_n = (math.log2(n) for n in N_ELEMENTS_RANGE)
@@ -275,7 +308,40 @@ def build_space(dataset: Dataset, choice: ModelChoice, ref: ModelChoice,
         spread[len(out)] = (lo_n, hi_n)
         std.append(0.25 * (hi_n - lo_n))
     return SearchSpace(tuple(out), np.array(std), np.array(lower), np.array(upper), spread, count,
-                       off, follows)
+                       off, follows, series)
+
+
+def _spread_split(dataset: Dataset, free: Sequence[FreeParam],
+                  spread: dict[int, tuple[float, float]], std: list[float],
+                  follows: dict[int, tuple[int, float]]) -> tuple[int, int] | None:
+    """Where the data do not read the split of the series stiffness K_eff between the drive
+    spring K0 and the interface Kts (:func:`~rigctl.workbench.data_scale.split_guessed`), Kts's
+    start is a guess and Kts is a spread coordinate like the mass: drawn as ln(Kts / K0) over
+    the ratio's plausible interval (:attr:`SearchSpace.series`), K0 moving with it at the series
+    stiffness of the start and Kt0 in proportion (:attr:`SearchSpace.follows`); its standard
+    deviation a quarter of the interval of Kts = K_eff (1 + Kts/K0) that ratio spans. A split the
+    probes do not resolve is otherwise searched only within BASE_FACTOR of its guess, decades
+    from a rig whose interface is neither rigid nor the preset's. Sets ``spread``, ``std`` and
+    ``follows`` in place; returns the (K0, Kts) coordinates, or None."""
+    at = {fp.name: i for i, fp in enumerate(free)}
+    i0, i1 = at.get("k0_N_per_m"), at.get("kts_N_per_m")
+    if i0 is None or i1 is None or not (free[i0].log and free[i1].log):
+        return None  # a stiffness the rig description states: the split follows from it
+    scale = campaign_scale(dataset)
+    ratios = split_guessed(scale)
+    if ratios is None:
+        return None
+    fp = free[i1]
+    k_eff = scale.k_eff_N_per_m
+    lo, hi = (fp.to_u(min(max(k_eff * (1.0 + r), fp.lower), fp.upper)) for r in ratios)
+    if not hi > lo:
+        return None
+    spread[i1] = (math.log(ratios[0]), math.log(ratios[1]))
+    std[i1] = 0.25 * (hi - lo)
+    j = at.get("kt0_N_per_m")
+    if j is not None and free[j].log and j not in spread:
+        follows[j] = (i1, 1.0)
+    return (i0, i1)
 
 
 def effects_at_data_scale(dataset: Dataset, choice: ModelChoice, effects: Collection[str],
