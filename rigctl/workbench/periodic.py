@@ -95,11 +95,24 @@ class PeriodicFit:
     """U at the peak (chi-square with 2R degrees of freedom at one frequency)."""
     runs: tuple[RunFit, ...]
 
+    def seen_amplitude(self, run: RunFit) -> float:
+        """The run's semi-amplitude as its slips show it: sqrt 2 times the RMS, over the run's
+        slips, of its fitted sinusoid less its mean. Where the run spans whole periods this is
+        ``run.amplitude``; where it spans a fraction of one, the cosine, the sine, the constant
+        and the straight line removed are nearly collinear there and the coefficients can take
+        any size (their sum still fits the slips), so the coefficients' amplitude says nothing
+        while this stays within what the slips show (at most sqrt 2 times their RMS: the fit
+        is a projection of the residual)."""
+        w = 2 * np.pi / self.period
+        wave = run.cos * np.cos(w * run.x) + run.sin * np.sin(w * run.x)
+        return math.sqrt(2.0) * float(np.std(wave))
+
     @property
     def amplitude(self) -> float:
-        """Semi-amplitude: the RMS over slips of the runs' amplitudes (in y's unit)."""
+        """Semi-amplitude: the RMS over slips of the runs' semi-amplitudes as their slips show
+        them (:meth:`seen_amplitude`; in y's unit)."""
         n = np.array([r.x.size for r in self.runs], dtype=np.float64)
-        a = np.array([r.amplitude for r in self.runs])
+        a = np.array([self.seen_amplitude(r) for r in self.runs])
         return float(np.sqrt(np.sum(n * a**2) / np.sum(n)))
 
 

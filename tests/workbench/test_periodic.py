@@ -79,6 +79,31 @@ def test_a_period_along_the_track_is_found_with_its_period_and_amplitude():
                     first), first
 
 
+def test_a_run_shorter_than_the_period_does_not_inflate_the_amplitude():
+    """A run spanning a fraction of the common period: its cosine, sine, constant and line are
+    nearly collinear, so its coefficients can be any size; the amplitude reported is what the
+    runs' slips show (at most sqrt 2 times their RMS), and the long runs' 0.3 N stays."""
+    rng = np.random.default_rng(5)
+    period = 40e-6
+    xs, ys = [], []
+    for k in range(2):  # two runs of 300 um: seven and a half periods each
+        x = np.cumsum(rng.uniform(0.5, 1.5, 60)) * SLIP_M
+        xs.append(x)
+        ys.append(0.3 * np.sin(2 * np.pi * x / period + 1.3 * k) + rng.normal(0, 0.1, x.size))
+    short = np.cumsum(rng.uniform(0.5, 1.5, 12)) * 0.1 * SLIP_M  # 6 um: a seventh of a period
+    xs.append(short)
+    ys.append(rng.normal(0, 0.1, short.size))
+    fit = periodic_test(xs, ys)
+    assert fit is not None
+    assert fit.period == pytest.approx(period, rel=0.10)
+    short_fit = fit.runs[2]
+    assert short_fit.amplitude > 10 * float(np.sqrt(np.mean(short_fit.y**2)))  # the coefficients
+    assert fit.seen_amplitude(short_fit) <= np.sqrt(2) * np.sqrt(np.mean(short_fit.y**2)) + 1e-12
+    assert fit.amplitude == pytest.approx(0.3 * np.sqrt(120 / 132), rel=0.2)
+    for run in fit.runs[:2]:
+        assert fit.seen_amplitude(run) == pytest.approx(run.amplitude, rel=0.1)
+
+
 def test_a_period_in_time_is_said_in_seconds():
     ds, comps = _campaign(2, lambda x, t, k, rng: 0.3 * np.cos(2 * np.pi * t / 17.0 + k))
     p = residual_map(ds, comps).patterns[0]
