@@ -133,7 +133,7 @@ SWEEP_FACTORS = (0.6, 0.8, 1.0, 1.3, 1.6)
 """A force sweep of another rig spans its own load (the library's sweep steps this rig's 50 N)."""
 
 
-def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
+def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel | bool, seed: int,
            rate_hz: float) -> list[Any]:
     sim = Simulator(model, sample_rate_hz=rate_hz)
     out = []
@@ -146,11 +146,14 @@ def _sweep(model: Any, fn_N: float, v: float, noise: NoiseModel, seed: int,
     return out
 
 
-def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN,
+def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN, *,
+              noisy: bool = True,
               ) -> tuple[list[Any], tuple[str, ...], ModelChoice, dict[str, Any]]:
     """Case ``i`` of ``seed``: its runs, the hidden effects, the generating model and how it was
     drawn (rig, rate, noise factor, protocols). A case depends only on ``seed``, ``i`` and the
-    hidden-effect counts ``pattern`` cycles through."""
+    hidden-effect counts ``pattern`` cycles through. ``noisy=False``: the same case's noise-free
+    twin (the same rig, effects, drives and physics; no sensor noise or quantisation), for
+    reading the same series with and without the record's noise (``benchmarks.reading_noise``)."""
     rng = np.random.default_rng(seed * 7919 + i)
     n_hidden = pattern[i % len(pattern)]
     hidden = tuple(str(e) for e in rng.choice(HIDEABLE, size=n_hidden, replace=False))
@@ -158,6 +161,7 @@ def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN,
         rig = draw_rig(rng)
         rate_hz = _log_uniform(rng, *RATE_RANGE_HZ)
         noise_factor = _log_uniform(rng, *NOISE_FACTOR_RANGE)
+        state = rng.bit_generator.state  # the campaign's own draws, for its noise-free twin
         runs, protocols, truth = _campaign(rng, rig, hidden, rate_hz, noise_factor, seed)
         try:
             tlre = prepare_dataset([r for r in runs if r.source.startswith("tlre")])
@@ -167,6 +171,10 @@ def draw_case(i: int, seed: int, pattern: tuple[int, ...] = HIDDEN_PATTERN,
             break
     else:
         raise RuntimeError(f"case {i}: no rig with stick-slip in 20 draws")
+    if not noisy:  # the rig the noisy case accepted, its campaign drawn again without noise
+        rng.bit_generator.state = state
+        runs, protocols, truth = _campaign(rng, rig, hidden, rate_hz, noise_factor, seed,
+                                           noisy=False)
     drawn = {"rate_hz": round(rate_hz), "noise_factor": round(noise_factor, 2),
              "rig": {k: float(f"{val:.3g}") for k, val in rig.items()}, "protocols": protocols}
     return runs, hidden, truth, drawn
@@ -253,7 +261,7 @@ def run_cases(run: Callable[[int], dict[str, Any]], first: int, cases: int,
 
 
 def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str, ...],
-              rate_hz: float, noise_factor: float, seed: int,
+              rate_hz: float, noise_factor: float, seed: int, noisy: bool = True,
               ) -> tuple[list[Any], list[str], ModelChoice]:
     keff = 1.0 / (1.0 / rig["k0_N_per_m"] + 1.0 / rig["kts_N_per_m"])
     drop = 2.0 * (rig["mu_s"] - rig["mu_k"]) * rig["fn_N"]
@@ -262,11 +270,10 @@ def _campaign(rng: np.random.Generator, rig: dict[str, float], hidden: tuple[str
     params = {k: val for k, val in rig.items() if k != "fn_N"}
     model = build_model("paper", effects=list(hidden), params=params, effect_params=values)
     f = noise_factor
-    noise = NoiseModel(ft_rms_N=f * 0.005 * rig["mu_s"] * rig["fn_N"],
-                       fn_rms_N=f * 0.002 * rig["fn_N"],
-                       force_lsb_N=1e-4 * rig["mu_s"] * rig["fn_N"],
-                       probe_rms_m=f * 0.02 * drop / keff, probe_lsb_m=0.005 * drop / keff,
-                       stage_lsb_m=0.002 * drop / keff)
+    noise: NoiseModel | bool = NoiseModel(
+        ft_rms_N=f * 0.005 * rig["mu_s"] * rig["fn_N"], fn_rms_N=f * 0.002 * rig["fn_N"],
+        force_lsb_N=1e-4 * rig["mu_s"] * rig["fn_N"], probe_rms_m=f * 0.02 * drop / keff,
+        probe_lsb_m=0.005 * drop / keff, stage_lsb_m=0.002 * drop / keff) if noisy else False
     protocols = ["tlre", *sorted({PROTOCOL_FOR_EFFECT[e] for e in hidden} - {"tlre"})]
     runs: list[Any] = []
     for k, proto in enumerate(protocols):
