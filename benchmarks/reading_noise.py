@@ -16,14 +16,13 @@ its answer and whether the generating model halves the base's error.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
 from benchmarks.bench_other_rigs import draw_case
+from benchmarks.held_out_table import load
 from rigctl.records.dataset import prepare_dataset
-from rigctl.records.features import extract_events
-from rigctl.workbench.evaluate import model_time_base
+from rigctl.workbench.evaluate import read_result
 
 
 def slips_read(seed: int, case: int) -> list[tuple[str, int, int]]:
@@ -34,10 +33,7 @@ def slips_read(seed: int, case: int) -> list[tuple[str, int, int]]:
     twins = {run.source: run for run in clean}
     out = []
     for run in prepare_dataset(noisy).runs:
-        twin = twins[run.name]
-        t = twin.t_s - twin.t_s[0]
-        events = extract_events(t, twin.ft_N, twin.d1_m - twin.d2_m, twin.fn_N, run.drive,
-                                run.read, time_base=model_time_base(run, t))
+        events = read_result(twins[run.name], run)
         out.append((run.name, len(run.events.features["drop_N"]),
                     len(events.features["drop_N"])))
     return out
@@ -50,10 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--results", help="the seed's bench_other_rigs JSON lines (answers)")
     args = ap.parse_args(argv)
-    results: dict[int, dict[str, Any]] = {}
-    if args.results:
-        with open(args.results, encoding="utf-8") as fh:
-            results = {int(c["case"]): c for c in map(json.loads, fh) if c}
+    results: dict[int, dict[str, Any]] = {
+        int(c["case"]): c for c in (load([args.results]) if args.results else [])}
     differ = 0
     for case in range(args.first, args.first + args.cases):
         runs = slips_read(args.seed, case)

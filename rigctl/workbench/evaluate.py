@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -85,7 +86,24 @@ def model_time_base(run: PreparedRun, t_s: FloatArray) -> TimeBase:
     return base
 
 
-def read_result(res: SimResult, run: PreparedRun) -> EventTable:
+class Channels(Protocol):
+    """The sampled channels a run is read from, on a time base starting at 0: a model run
+    (:class:`~rigctl.model.SimResult`) or a record in memory (:class:`rigctl.data.MeasuredRun`,
+    e.g. a generated campaign's noise-free twin, ``benchmarks.reading_noise``)."""
+
+    @property
+    def t_s(self) -> FloatArray: ...
+    @property
+    def ft_N(self) -> FloatArray: ...
+    @property
+    def fn_N(self) -> FloatArray: ...
+    @property
+    def d1_m(self) -> FloatArray: ...
+    @property
+    def d2_m(self) -> FloatArray: ...
+
+
+def read_result(res: Channels, run: PreparedRun) -> EventTable:
     """The model's slips and features on ``run``, read with the run's own settings."""
     return extract_events(
         res.t_s, res.ft_N, res.d1_m - res.d2_m, res.fn_N, run.drive, run.read,
